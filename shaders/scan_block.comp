@@ -1,0 +1,4 @@
+#version 450
+// Scan kernel, storage-buffer loads (GPUs); body in scan_block.glsl.
+#extension GL_GOOGLE_include_directive : require
+#include "scan_block.glsl"

@@ -1,0 +1,10 @@
+//! The GPU passes, each with a CPU twin in [`crate::cpu`], and what they
+//! share with the shaders.
+//!
+//! - [`shaders`]: SPIR-V of every `shaders/*.comp`, compiled by `build.rs`;
+//! - [`shared`]: Rust twins of the structs in `shaders/common.glsl`;
+//! - [`scan`]: exclusive prefix scan of `u32` arrays.
+
+pub mod scan;
+pub mod shaders;
+pub mod shared;

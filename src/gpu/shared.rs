@@ -1,0 +1,139 @@
+//! Rust twins of the structs and constants in `shaders/common.glsl`.
+//!
+//! Each GLSL `vec4` whose `w` holds uint bits is spelled here as `[f32; 3]` +
+//! `u32`: same bytes, typed fields. All members are 16-byte groups, so std430
+//! (storage buffers, push constants) and std140 (uniform buffers) agree with
+//! `#[repr(C)]`. `tests/layout.rs` checks every field on the device.
+
+use bytemuck::{Pod, Zeroable};
+
+/// `DEFAULT_WORKGROUP_SIZE`: workgroup size of 1D passes.
+pub const DEFAULT_WORKGROUP_SIZE: u32 = 64;
+/// `SCAN_WORKGROUP_SIZE`: default scan workgroup size.
+pub const SCAN_WORKGROUP_SIZE: u32 = 256;
+/// `SCAN_VECS_PER_THREAD`: default uvec4 loads per scan invocation.
+pub const SCAN_VECS_PER_THREAD: u32 = 2;
+/// `MAX_VECS` of `scan_block.comp`: the most uvec4 loads per invocation.
+pub const SCAN_MAX_VECS_PER_THREAD: u32 = 8;
+/// `SCAN_FLAG_BLOCK_OFFSETS`.
+pub const SCAN_FLAG_BLOCK_OFFSETS: u32 = 1;
+
+/// `VIEW_SAMPLE_VALID`.
+pub const VIEW_SAMPLE_VALID: u32 = 1;
+/// `VIEW_SAMPLE_BACKFACING`.
+pub const VIEW_SAMPLE_BACKFACING: u32 = 2;
+/// `TRIANGLE_DOUBLE_SIDED`.
+pub const TRIANGLE_DOUBLE_SIDED: u32 = 1;
+/// `TRIANGLE_CASTS_SHADOW`.
+pub const TRIANGLE_CASTS_SHADOW: u32 = 2;
+/// `LIGHT_KIND_POINT`.
+pub const LIGHT_KIND_POINT: u32 = 0;
+/// `LIGHT_KIND_DIRECTIONAL`.
+pub const LIGHT_KIND_DIRECTIONAL: u32 = 1;
+/// `LIGHT_KIND_RECT`.
+pub const LIGHT_KIND_RECT: u32 = 2;
+/// `LIGHT_KIND_DISK`.
+pub const LIGHT_KIND_DISK: u32 = 3;
+/// `LIGHT_KIND_SPHERE`.
+pub const LIGHT_KIND_SPHERE: u32 = 4;
+
+/// `ScanPush`: push constants of the scan shaders.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct ScanPush {
+    /// Elements in this level.
+    pub n: u32,
+    /// `SCAN_FLAG_*`.
+    pub flags: u32,
+    /// Workgroups that hold data.
+    pub group_count: u32,
+    /// Workgroups per row of a 2D dispatch.
+    pub groups_x: u32,
+}
+
+/// `GpuViewSample`: one eye-space sample (32 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuViewSample {
+    /// Camera-relative position (`position_triangle.xyz`).
+    pub position: [f32; 3],
+    /// Triangle id (`position_triangle.w` bits).
+    pub triangle: u32,
+    /// Unit normal (`normal_flags.xyz`).
+    pub normal: [f32; 3],
+    /// `VIEW_SAMPLE_*` flags (`normal_flags.w` bits).
+    pub flags: u32,
+}
+
+/// `GpuTriangle`: one triangle, vertices relative to the camera (48 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuTriangle {
+    /// Vertex 0 (`v0_flags.xyz`).
+    pub v0: [f32; 3],
+    /// `TRIANGLE_*` flags (`v0_flags.w` bits).
+    pub flags: u32,
+    /// Vertex 1 (`v1_mesh.xyz`).
+    pub v1: [f32; 3],
+    /// Mesh id (`v1_mesh.w` bits).
+    pub mesh: u32,
+    /// Vertex 2 (`v2_pad.xyz`).
+    pub v2: [f32; 3],
+    /// Reserved, 0 (`v2_pad.w`).
+    pub reserved: u32,
+}
+
+/// `FrameConstants`: the per-frame uniform buffer (std140, 160 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct FrameConstants {
+    /// Camera-relative position to light clip space; columns (as glam's
+    /// `Mat4::to_cols_array_2d`, GLSL's `mat4` column order).
+    pub light_view_proj: [[f32; 4]; 4],
+    /// Camera-relative light centre (`light_position.xyz`).
+    pub light_position: [f32; 3],
+    /// `LIGHT_KIND_*` (`light_position.w` bits).
+    pub light_kind: u32,
+    /// Unit axis the light faces (xyz); w reserved.
+    pub light_direction: [f32; 4],
+    /// Area light half sizes / radius (xyz); w reserved.
+    pub light_extent: [f32; 4],
+    /// x, y: light texels; z: light samples; w: reserved.
+    pub light_resolution: [u32; 4],
+    /// x: view samples; y: triangles; z, w: image width, height.
+    pub counts: [u32; 4],
+    /// World position of the camera-relative origin (xyz); w reserved.
+    pub camera_origin: [f32; 4],
+}
+
+impl GpuViewSample {
+    /// A sample from glam vectors.
+    pub fn new(position: glam::Vec3, triangle: u32, normal: glam::Vec3, flags: u32) -> Self {
+        GpuViewSample {
+            position: position.to_array(),
+            triangle,
+            normal: normal.to_array(),
+            flags,
+        }
+    }
+}
+
+impl GpuTriangle {
+    /// A triangle from glam vectors.
+    pub fn new(v: [glam::Vec3; 3], flags: u32, mesh: u32) -> Self {
+        GpuTriangle {
+            v0: v[0].to_array(),
+            flags,
+            v1: v[1].to_array(),
+            mesh,
+            v2: v[2].to_array(),
+            reserved: 0,
+        }
+    }
+}
+
+// The sizes the GLSL side has; a mismatch fails the build.
+const _: () = assert!(std::mem::size_of::<ScanPush>() == 16);
+const _: () = assert!(std::mem::size_of::<GpuViewSample>() == 32);
+const _: () = assert!(std::mem::size_of::<GpuTriangle>() == 48);
+const _: () = assert!(std::mem::size_of::<FrameConstants>() == 160);

@@ -1,0 +1,286 @@
+//! `afs`: the alias-free shadows command-line tool.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use alias_free_shadows::dump::{compare, Dump};
+use alias_free_shadows::render::{render_reference, Frame, FrameOptions};
+use alias_free_shadows::scene::file::{self, SceneDescription, SoftMode};
+use alias_free_shadows::{scene, vulkan, Error, Result};
+use clap::{Args, Parser, Subcommand};
+
+/// Alias-free shadows: pixel-exact hard shadows and sample-exact soft shadows
+/// computed with alias-free shadow maps on Vulkan compute (Sintorn,
+/// Eisemann, Assarsson, EGSR 2008).
+///
+/// A SCENE is a TOML scene file (see the README), a .gltf or .glb file, or
+/// builtin:NAME where NAME is one of demo, plane_sphere, torus_knot[:TRIANGLES],
+/// columns, hairball, fence, stairs. Without a SCENE, builtin:demo is used.
+#[derive(Parser, Debug)]
+#[command(name = "afs", version, about, long_about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Render a scene's shadows and write the shaded image (and optionally a dump).
+    ///
+    /// Visibility is currently computed by the CPU oracle (the GPU shadow
+    /// passes are not implemented yet); the output says so.
+    Render(RenderArgs),
+    /// Render a scene with the CPU ray-casting oracle (the reference).
+    Reference(RenderArgs),
+    /// Compare the visibility of two dumps: mean absolute, RMSE and maximum
+    /// difference and the share of pixels differing by more than one light sample.
+    Compare {
+        /// The first dump folder.
+        dump_a: PathBuf,
+        /// The second dump folder.
+        dump_b: PathBuf,
+        /// Print the comparison as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// List the Vulkan devices and their limits.
+    Info,
+    /// Write a built-in scene as a binary glTF (.glb) file.
+    Export {
+        /// The built-in scene, e.g. builtin:demo or torus_knot:20000.
+        scene: String,
+        /// The .glb file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+}
+
+#[derive(Args, Debug)]
+struct RenderArgs {
+    /// The scene: a .toml scene file, a .gltf/.glb file, or builtin:NAME.
+    #[arg(default_value = "builtin:demo")]
+    scene: String,
+    /// Where to write the shaded image (PNG).
+    #[arg(short, long, default_value = "out.png")]
+    output: PathBuf,
+    /// Also write the dump (EXR view samples and visibility, scene.json,
+    /// stats.json, image.png) into this folder.
+    #[arg(long, value_name = "DIR")]
+    dump: Option<PathBuf>,
+    /// Print the statistics (times per pass and counters).
+    #[arg(long)]
+    stats: bool,
+    /// Override the image width.
+    #[arg(long)]
+    width: Option<u32>,
+    /// Override the image height.
+    #[arg(long)]
+    height: Option<u32>,
+    /// Override the number of samples of every area or volumetric light (1 to 1024).
+    #[arg(long)]
+    samples: Option<u32>,
+    /// Light-texel map resolution (overrides [shadows] light_texels).
+    #[arg(long)]
+    light_texels: Option<u32>,
+    /// Soft-shadow mode: lut or exact (overrides [shadows] mode).
+    #[arg(long, value_parser = ["lut", "exact"])]
+    mode: Option<String>,
+    /// Plane look-up texture resolution (overrides [shadows] lut_resolution).
+    #[arg(long)]
+    lut_resolution: Option<u32>,
+    /// Use the Vulkan device whose name contains this text (also AFS_DEVICE).
+    #[arg(long, env = "AFS_DEVICE")]
+    device: Option<String>,
+    /// Add a ground plane under the scene's lowest point.
+    #[arg(long)]
+    ground: bool,
+    /// Do not show progress bars.
+    #[arg(long)]
+    quiet: bool,
+}
+
+impl RenderArgs {
+    fn scene(&self) -> Result<SceneDescription> {
+        let mut desc = file::load(&self.scene)?;
+        if self.ground {
+            file::place_on_ground(&mut desc.scene);
+        }
+        if let Some(w) = self.width {
+            desc.camera.width = w;
+        }
+        if let Some(h) = self.height {
+            desc.camera.height = h;
+        }
+        if let Some(s) = self.samples {
+            for l in desc.lights.iter_mut().filter(|l| l.is_area()) {
+                if !matches!(
+                    l.shape,
+                    alias_free_shadows::light::LightShape::Explicit { .. }
+                ) {
+                    l.samples = s;
+                }
+            }
+        }
+        if let Some(t) = self.light_texels {
+            desc.shadows.light_texels = t;
+        }
+        if let Some(m) = &self.mode {
+            desc.shadows.mode = if m == "exact" {
+                SoftMode::Exact
+            } else {
+                SoftMode::Lut
+            };
+        }
+        if let Some(r) = self.lut_resolution {
+            desc.shadows.lut_resolution = r;
+        }
+        desc.validate()?;
+        Ok(desc)
+    }
+}
+
+fn write_outputs(args: &RenderArgs, frame: &Frame) -> Result<()> {
+    if let Some(parent) = args.output.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+    }
+    frame
+        .image
+        .save_with_format(&args.output, image::ImageFormat::Png)
+        .map_err(|e| Error::Image(format!("{}: {e}", args.output.display())))?;
+    if let Some(dir) = &args.dump {
+        frame.dump.write(dir, &frame.image)?;
+    }
+    Ok(())
+}
+
+fn report(desc: &SceneDescription, frame: &Frame, args: &RenderArgs) {
+    let stats = &frame.dump.stats;
+    println!(
+        "{}: {} triangles, {}x{} pixels, {} light(s)",
+        desc.name,
+        desc.scene.triangle_count(),
+        desc.camera.width,
+        desc.camera.height,
+        desc.lights.len()
+    );
+    for (k, v) in frame.dump.visibility.iter().enumerate() {
+        let covered: Vec<f32> = v.iter().filter(|p| p[3] > 0.5).map(|p| p[0]).collect();
+        let shadowed = covered.iter().filter(|&&x| x < 1.0).count();
+        println!(
+            "  light {k}: {} samples, {:.1}% of view samples at least partly shadowed",
+            desc.lights[k].light_samples().len(),
+            100.0 * shadowed as f64 / covered.len().max(1) as f64
+        );
+    }
+    println!(
+        "  total {:.1} ms on {}",
+        stats["total_ms"].as_f64().unwrap_or(0.0),
+        stats["device"].as_str().unwrap_or("?")
+    );
+    println!("  wrote {}", args.output.display());
+    if let Some(d) = &args.dump {
+        println!("  wrote dump to {}", d.display());
+    }
+    if args.stats {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(stats).unwrap_or_default()
+        );
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Render(args) => {
+            let desc = args.scene()?;
+            eprintln!(
+                "note: the GPU shadow passes are not implemented yet; visibility is computed by the CPU oracle"
+            );
+            let frame = render_reference(
+                &desc,
+                FrameOptions {
+                    progress: !args.quiet,
+                },
+            )?;
+            write_outputs(&args, &frame)?;
+            report(&desc, &frame, &args);
+        }
+        Command::Reference(args) => {
+            let desc = args.scene()?;
+            let frame = render_reference(
+                &desc,
+                FrameOptions {
+                    progress: !args.quiet,
+                },
+            )?;
+            write_outputs(&args, &frame)?;
+            report(&desc, &frame, &args);
+        }
+        Command::Compare {
+            dump_a,
+            dump_b,
+            json,
+        } => {
+            let a = Dump::read(&dump_a)?;
+            let b = Dump::read(&dump_b)?;
+            let rows = compare(&a, &b)?;
+            if json {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&rows).unwrap_or_default()
+                );
+            } else {
+                println!("light  pixels  mean_abs      rmse          max_abs   >1 sample  coverage_mismatch");
+                for r in rows {
+                    println!(
+                        "{:>5} {:>7}  {:<12.6e}  {:<12.6e}  {:<8.5} {:>9.4}%  {}",
+                        r.light,
+                        r.pixels,
+                        r.mean_abs,
+                        r.rmse,
+                        r.max_abs,
+                        100.0 * r.share_over_one_sample,
+                        r.coverage_mismatch
+                    );
+                }
+            }
+        }
+        Command::Info => {
+            let devices = vulkan::list_devices()?;
+            if devices.is_empty() {
+                return Err(Error::Vulkan(
+                    "no Vulkan device found (install mesa-vulkan-drivers for lavapipe)".into(),
+                ));
+            }
+            for d in devices {
+                println!("{d}");
+            }
+        }
+        Command::Export {
+            scene: spec,
+            output,
+        } => {
+            let name = spec.strip_prefix("builtin:").unwrap_or(&spec);
+            let b = scene::builtin::builtin(name)?;
+            scene::gltf_write::write_glb(&b.scene, &output)?;
+            println!(
+                "wrote {} ({} triangles)",
+                output.display(),
+                b.scene.triangle_count()
+            );
+        }
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,619 @@
+//! The TOML scene file, and resolving any scene argument (`.toml`, `.gltf`,
+//! `.glb` or `builtin:NAME`) into a complete [`SceneDescription`]: geometry,
+//! camera, lights and engine settings. The format is documented in the README.
+
+use std::path::{Path, PathBuf};
+
+use glam::{DVec2, DVec3};
+use serde::Deserialize;
+
+use super::{builtin, gltf_load, Camera, Scene};
+use crate::light::{default_tangent, orthonormal_tangent, Distribution, Light, LightShape};
+use crate::{Error, Result};
+
+/// How soft shadows evaluate light samples against a triangle's planes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SoftMode {
+    /// Bitmasks from the plane look-up texture (the paper's method).
+    #[default]
+    Lut,
+    /// Every light sample tested against the planes directly.
+    Exact,
+}
+
+/// Engine settings (the `[shadows]` table); CLI flags override them.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ShadowSettings {
+    /// Light-texel map resolution (the map is `light_texels`²).
+    pub light_texels: u32,
+    /// Soft-shadow evaluation mode.
+    pub mode: SoftMode,
+    /// Resolution of the plane look-up texture (`lut_resolution`³).
+    pub lut_resolution: u32,
+}
+
+impl Default for ShadowSettings {
+    fn default() -> Self {
+        ShadowSettings {
+            light_texels: 512,
+            mode: SoftMode::Lut,
+            lut_resolution: 128,
+        }
+    }
+}
+
+impl ShadowSettings {
+    /// Checks the ranges; the error names the key.
+    pub fn validate(&self) -> Result<()> {
+        if !(1..=16384).contains(&self.light_texels) {
+            return Err(Error::InvalidInput(format!(
+                "shadows.light_texels must be in 1..=16384, got {}",
+                self.light_texels
+            )));
+        }
+        if !(8..=1024).contains(&self.lut_resolution) {
+            return Err(Error::InvalidInput(format!(
+                "shadows.lut_resolution must be in 8..=1024, got {}",
+                self.lut_resolution
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// A fully resolved scene: what a frame needs.
+#[derive(Clone, Debug)]
+pub struct SceneDescription {
+    /// A name for reports (the file name or `builtin:NAME`).
+    pub name: String,
+    pub scene: Scene,
+    pub camera: Camera,
+    pub lights: Vec<Light>,
+    pub shadows: ShadowSettings,
+}
+
+impl SceneDescription {
+    /// Validates the camera, every light and the settings.
+    pub fn validate(&self) -> Result<()> {
+        self.camera.validate()?;
+        for (i, l) in self.lights.iter().enumerate() {
+            l.validate()
+                .map_err(|e| Error::InvalidInput(format!("light {i}: {}", strip_prefix(&e))))?;
+        }
+        self.shadows.validate()
+    }
+}
+
+fn strip_prefix(e: &Error) -> String {
+    let s = e.to_string();
+    s.strip_prefix("invalid input: ").unwrap_or(&s).to_string()
+}
+
+// ----------------------------------------------------------------------------
+// The TOML schema. Unknown keys are errors (deny_unknown_fields) so that a
+// typo is never silently ignored.
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+struct FileRoot {
+    scene: String,
+    ground: Option<FileGround>,
+    camera: Option<FileCamera>,
+    #[serde(default)]
+    light: Vec<FileLight>,
+    #[serde(default)]
+    shadows: ShadowSettings,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+struct FileGround {
+    y: f64,
+    half_size: f64,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+struct FileCamera {
+    eye: [f64; 3],
+    target: [f64; 3],
+    #[serde(default = "default_up")]
+    up: [f64; 3],
+    #[serde(default = "default_fov")]
+    fov_y_deg: f64,
+    #[serde(default = "default_size")]
+    width: u32,
+    #[serde(default = "default_size")]
+    height: u32,
+}
+
+fn default_up() -> [f64; 3] {
+    [0.0, 1.0, 0.0]
+}
+fn default_fov() -> f64 {
+    45.0
+}
+fn default_size() -> u32 {
+    512
+}
+
+#[derive(Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum FileLightKind {
+    Point,
+    Directional,
+    Sphere,
+    Disk,
+    Rect,
+    Ellipsoid,
+    Explicit,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+struct FileLight {
+    kind: FileLightKind,
+    position: Option<[f64; 3]>,
+    radius: Option<f64>,
+    size: Option<[f64; 2]>,
+    semi_axes: Option<[f64; 3]>,
+    normal: Option<[f64; 3]>,
+    tangent: Option<[f64; 3]>,
+    direction: Option<[f64; 3]>,
+    positions: Option<Vec<[f64; 3]>>,
+    samples: Option<u32>,
+    #[serde(default)]
+    distribution: Distribution,
+    #[serde(default = "default_seed")]
+    seed: u64,
+    #[serde(default = "default_color")]
+    color: [f32; 3],
+    #[serde(default = "default_intensity")]
+    intensity: f32,
+}
+
+fn default_seed() -> u64 {
+    7
+}
+fn default_color() -> [f32; 3] {
+    [1.0; 3]
+}
+fn default_intensity() -> f32 {
+    1.0
+}
+
+/// Default number of samples for area and volumetric lights.
+pub const DEFAULT_AREA_SAMPLES: u32 = 128;
+
+impl FileLight {
+    fn resolve(&self) -> std::result::Result<Light, String> {
+        let v = |a: [f64; 3]| DVec3::from_array(a);
+        let need = |name: &str, x: Option<[f64; 3]>| {
+            x.map(v)
+                .ok_or_else(|| format!("missing key `{name}` for a {:?} light", self.kind))
+        };
+        let need_f = |name: &str, x: Option<f64>| {
+            x.ok_or_else(|| format!("missing key `{name}` for a {:?} light", self.kind))
+        };
+        let unit = |name: &str, x: DVec3| {
+            let l = x.length();
+            if !l.is_finite() || l == 0.0 {
+                Err(format!(
+                    "`{name}` must be a finite non-zero vector, got {x:?}"
+                ))
+            } else {
+                Ok(x / l)
+            }
+        };
+        // normal and tangent of oriented shapes: the normal defaults to
+        // straight down (a ceiling light), the tangent as documented.
+        let frame = || -> std::result::Result<(DVec3, DVec3), String> {
+            let n = unit("normal", self.normal.map(v).unwrap_or(DVec3::NEG_Y))?;
+            let t = match self.tangent {
+                Some(t) => {
+                    let t = unit("tangent", v(t))?;
+                    orthonormal_tangent(n, t)
+                        .ok_or_else(|| "`tangent` is parallel to `normal`".to_string())?
+                }
+                None => default_tangent(n),
+            };
+            Ok((n, t))
+        };
+        let area = !matches!(self.kind, FileLightKind::Point | FileLightKind::Directional);
+        let shape = match self.kind {
+            FileLightKind::Point => LightShape::Point {
+                position: need("position", self.position)?,
+            },
+            FileLightKind::Directional => LightShape::Directional {
+                direction: unit("direction", need("direction", self.direction)?)?,
+            },
+            FileLightKind::Sphere => LightShape::Sphere {
+                position: need("position", self.position)?,
+                radius: need_f("radius", self.radius)?,
+            },
+            FileLightKind::Disk => {
+                let (normal, tangent) = frame()?;
+                LightShape::Disk {
+                    position: need("position", self.position)?,
+                    radius: need_f("radius", self.radius)?,
+                    normal,
+                    tangent,
+                }
+            }
+            FileLightKind::Rect => {
+                let (normal, tangent) = frame()?;
+                let size = self
+                    .size
+                    .ok_or_else(|| "missing key `size` for a Rect light".to_string())?;
+                LightShape::Rect {
+                    position: need("position", self.position)?,
+                    size: DVec2::from_array(size),
+                    normal,
+                    tangent,
+                }
+            }
+            FileLightKind::Ellipsoid => {
+                let (normal, tangent) = frame()?;
+                LightShape::Ellipsoid {
+                    position: need("position", self.position)?,
+                    semi_axes: need("semi_axes", self.semi_axes)?,
+                    normal,
+                    tangent,
+                }
+            }
+            FileLightKind::Explicit => {
+                let p = self
+                    .positions
+                    .as_ref()
+                    .ok_or_else(|| "missing key `positions` for an Explicit light".to_string())?;
+                LightShape::Explicit {
+                    positions: p.iter().map(|a| v(*a)).collect(),
+                }
+            }
+        };
+        let samples = match (&shape, self.samples) {
+            (LightShape::Explicit { positions }, None) => positions.len() as u32,
+            (LightShape::Explicit { positions }, Some(s)) if s as usize != positions.len() => {
+                return Err(format!(
+                    "`samples` = {s} but `positions` has {} entries",
+                    positions.len()
+                ))
+            }
+            (_, Some(s)) if !area && s != 1 => {
+                return Err(format!(
+                    "`samples` must be 1 for a {:?} light, got {s}",
+                    self.kind
+                ))
+            }
+            (_, Some(s)) => s,
+            (_, None) if area => DEFAULT_AREA_SAMPLES,
+            (_, None) => 1,
+        };
+        let light = Light {
+            shape,
+            samples,
+            distribution: self.distribution,
+            seed: self.seed,
+            color: self.color,
+            intensity: self.intensity,
+        };
+        light.validate().map_err(|e| strip_prefix(&e))?;
+        Ok(light)
+    }
+}
+
+/// Parses a TOML scene file's text. `path` is used for messages and to
+/// resolve the relative `scene` path.
+pub fn parse_scene_file(text: &str, path: &Path) -> Result<SceneDescription> {
+    let err = |message: String| Error::SceneFile {
+        path: path.to_path_buf(),
+        message,
+    };
+    let root: FileRoot = toml::from_str(text).map_err(|e| err(toml_message(&e)))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let mut desc = load_geometry(&root.scene, base)?;
+    desc.name = path.display().to_string();
+    if let Some(g) = &root.ground {
+        if !(g.y.is_finite() && g.half_size.is_finite() && g.half_size > 0.0) {
+            return Err(err(format!(
+                "ground: `y` must be finite and `half_size` finite and > 0, got y = {}, half_size = {}",
+                g.y, g.half_size
+            )));
+        }
+        desc.scene.add_ground(g.y, g.half_size);
+    }
+    if let Some(c) = &root.camera {
+        desc.camera = Camera {
+            eye: DVec3::from_array(c.eye),
+            target: DVec3::from_array(c.target),
+            up: DVec3::from_array(c.up),
+            fov_y_deg: c.fov_y_deg,
+            width: c.width,
+            height: c.height,
+        };
+        desc.camera.validate().map_err(|e| err(strip_prefix(&e)))?;
+    }
+    if !root.light.is_empty() {
+        desc.lights = root
+            .light
+            .iter()
+            .enumerate()
+            .map(|(i, l)| l.resolve().map_err(|m| err(format!("light {i}: {m}"))))
+            .collect::<Result<_>>()?;
+    }
+    root.shadows.validate().map_err(|e| err(strip_prefix(&e)))?;
+    desc.shadows = root.shadows;
+    Ok(desc)
+}
+
+/// The toml crate's message, on one line, with the line number first.
+fn toml_message(e: &toml::de::Error) -> String {
+    e.to_string().trim().replace('\n', " ").replace("  ", " ")
+}
+
+/// Loads a scene argument: a TOML scene file, a `.gltf`/`.glb` file, or
+/// `builtin:NAME`. Scenes without a camera or lights of their own get a
+/// framing camera and a point light above ([`default_view`]).
+pub fn load(spec: &str) -> Result<SceneDescription> {
+    let path = PathBuf::from(spec);
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    if ext.as_deref() == Some("toml") {
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        parse_scene_file(&text, &path)
+    } else {
+        load_geometry(spec, Path::new("."))
+    }
+}
+
+/// Loads `builtin:NAME` or a glTF file (relative to `base`), with the
+/// scene's own camera and lights or defaults.
+fn load_geometry(spec: &str, base: &Path) -> Result<SceneDescription> {
+    if let Some(name) = spec.strip_prefix("builtin:") {
+        let b = builtin::builtin(name)?;
+        return Ok(SceneDescription {
+            name: spec.to_string(),
+            scene: b.scene,
+            camera: b.camera,
+            lights: b.lights,
+            shadows: ShadowSettings::default(),
+        });
+    }
+    let path = base.join(spec);
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("gltf") | Some("glb") => {}
+        _ => return Err(Error::InvalidInput(format!(
+            "{}: a scene is a .toml scene file, a .gltf or .glb file, or builtin:NAME (one of {})",
+            path.display(),
+            builtin::NAMES.join(", ")
+        ))),
+    }
+    let scene = gltf_load::load_gltf(&path)?;
+    if scene.triangle_count() == 0 {
+        // A file that yields nothing to render is almost always a broken
+        // export; the library API still accepts empty scenes built in code.
+        return Err(Error::Gltf {
+            path,
+            message: "the scene contains no triangles".into(),
+        });
+    }
+    let (camera, light) = default_view(&scene);
+    let camera = scene.cameras.first().copied().unwrap_or(camera);
+    Ok(SceneDescription {
+        name: path.display().to_string(),
+        scene,
+        camera,
+        lights: vec![light],
+        shadows: ShadowSettings::default(),
+    })
+}
+
+/// A camera that frames the scene from a three-quarter view and a point
+/// light above and to the side, for scenes that bring neither.
+pub fn default_view(scene: &Scene) -> (Camera, Light) {
+    let (lo, hi) = scene
+        .bounds()
+        .unwrap_or((DVec3::splat(-1.0), DVec3::splat(1.0)));
+    let center = (lo + hi) * 0.5;
+    let radius = ((hi - lo).length() * 0.5).max(1e-6);
+    let fov_y_deg: f64 = 45.0;
+    let dist = radius / (fov_y_deg.to_radians() * 0.5).sin();
+    let dir = DVec3::new(0.55, 0.45, 0.7).normalize();
+    let camera = Camera {
+        eye: center + dir * dist,
+        target: center,
+        up: DVec3::Y,
+        fov_y_deg,
+        width: 512,
+        height: 512,
+    };
+    let light = Light {
+        shape: LightShape::Point {
+            position: center + DVec3::new(-0.6, 1.6, 0.5).normalize() * (radius * 3.0),
+        },
+        samples: 1,
+        distribution: Distribution::Poisson,
+        seed: 7,
+        color: [1.0; 3],
+        intensity: 1.0,
+    };
+    (camera, light)
+}
+
+/// Adds a square ground plane (normal +y) just under the scene's lowest
+/// point, centred under the model and four model radii wide, so that a loose
+/// model is "placed on a ground plane" that catches its shadows.
+pub fn place_on_ground(scene: &mut Scene) {
+    if let Some((lo, hi)) = scene.bounds() {
+        let c = (lo + hi) * 0.5;
+        let h = ((hi - lo).length() * 2.0).max(1e-6);
+        let y = lo.y;
+        let positions = vec![
+            DVec3::new(c.x - h, y, c.z - h),
+            DVec3::new(c.x + h, y, c.z - h),
+            DVec3::new(c.x + h, y, c.z + h),
+            DVec3::new(c.x - h, y, c.z + h),
+        ];
+        let mut m = super::Mesh::new("ground", positions, vec![[0, 3, 2], [0, 2, 1]]);
+        m.closed = false;
+        scene.meshes.push(m);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<SceneDescription> {
+        parse_scene_file(text, Path::new("/nonexistent/scene.toml"))
+    }
+
+    #[test]
+    fn full_example_parses() {
+        let d = parse(
+            r#"
+scene = "builtin:plane_sphere"
+ground = { y = -1.0, half_size = 10.0 }
+[camera]
+eye = [0.0, 2.0, 5.0]
+target = [0.0, 0.5, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 45.0
+width = 64
+height = 32
+[[light]]
+kind = "sphere"
+position = [2.0, 5.0, 1.0]
+radius = 0.5
+samples = 256
+distribution = "sobol"
+seed = 3
+[[light]]
+kind = "rect"
+position = [0.0, 4.0, 0.0]
+size = [1.0, 0.5]
+normal = [0.0, -1.0, 0.0]
+[[light]]
+kind = "directional"
+direction = [0.0, -2.0, 0.0]
+[shadows]
+light_texels = 256
+mode = "exact"
+lut_resolution = 64
+"#,
+        )
+        .unwrap();
+        assert_eq!(d.camera.width, 64);
+        assert_eq!(d.lights.len(), 3);
+        assert_eq!(d.lights[0].samples, 256);
+        assert_eq!(d.lights[0].distribution, Distribution::Sobol);
+        assert_eq!(d.lights[1].samples, DEFAULT_AREA_SAMPLES);
+        match &d.lights[1].shape {
+            LightShape::Rect { tangent, .. } => {
+                // normalize(cross(-y, +y)) is degenerate -> +x
+                assert_eq!(*tangent, DVec3::X)
+            }
+            s => panic!("{s:?}"),
+        }
+        assert_eq!(
+            d.lights[2].shape,
+            LightShape::Directional {
+                direction: DVec3::NEG_Y
+            }
+        );
+        assert_eq!(d.shadows.mode, SoftMode::Exact);
+        assert_eq!(d.shadows.light_texels, 256);
+    }
+
+    #[test]
+    fn unknown_key_is_named() {
+        let e = parse("scene = \"builtin:demo\"\nfoo = 1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("foo"), "{e}");
+        let e = parse(
+            "scene = \"builtin:demo\"\n[camera]\neye=[0.0,0.0,1.0]\ntarget=[0.0,0.0,0.0]\nfovy=3\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("fovy"), "{e}");
+        let e = parse("scene = \"builtin:demo\"\n[[light]]\nkind=\"point\"\nposition=[0.0,1.0,0.0]\nradius2=1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("radius2"), "{e}");
+    }
+
+    #[test]
+    fn wrong_type_is_named() {
+        let e = parse("scene = \"builtin:demo\"\n[shadows]\nlight_texels = \"big\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("light_texels"), "{e}");
+        let e = parse("scene = 3\n").unwrap_err().to_string();
+        assert!(e.contains("scene"), "{e}");
+        let e = parse("scene = \"builtin:demo\"\n[[light]]\nkind=\"laser\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("laser"), "{e}");
+    }
+
+    #[test]
+    fn bad_values_are_errors() {
+        for (text, needle) in [
+            (
+                "[[light]]\nkind=\"point\"\nposition=[0.0,1.0,0.0]\nsamples=4\n",
+                "samples",
+            ),
+            (
+                "[[light]]\nkind=\"sphere\"\nposition=[0.0,1.0,0.0]\nradius=0.5\nsamples=0\n",
+                "samples",
+            ),
+            (
+                "[[light]]\nkind=\"sphere\"\nposition=[0.0,1.0,0.0]\nradius=0.5\nsamples=5000\n",
+                "samples",
+            ),
+            (
+                "[[light]]\nkind=\"sphere\"\nposition=[0.0,1.0,0.0]\nradius=-1.0\n",
+                "radius",
+            ),
+            (
+                "[[light]]\nkind=\"sphere\"\nposition=[0.0,1.0,0.0]\n",
+                "radius",
+            ),
+            (
+                "[[light]]\nkind=\"point\"\nposition=[0.0,nan,0.0]\n",
+                "position",
+            ),
+            (
+                "[[light]]\nkind=\"directional\"\ndirection=[0.0,0.0,0.0]\n",
+                "direction",
+            ),
+            (
+                "[camera]\neye=[0.0,0.0,1.0]\ntarget=[0.0,0.0,0.0]\nwidth=0\n",
+                "size",
+            ),
+            ("[camera]\neye=[0.0,inf,1.0]\ntarget=[0.0,0.0,0.0]\n", "eye"),
+            ("[shadows]\nlight_texels=0\n", "light_texels"),
+            ("ground = { y = nan, half_size = 1.0 }\n", "ground"),
+        ] {
+            let e = parse(&format!("scene = \"builtin:plane_sphere\"\n{text}"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(needle), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn malformed_toml_is_an_error() {
+        let e = parse("scene = \"builtin:demo\n").unwrap_err().to_string();
+        assert!(e.contains("scene.toml"), "{e}");
+    }
+}

@@ -1,0 +1,273 @@
+//! Scene input: triangle meshes in world space, their materials and cameras.
+//!
+//! A [`Scene`] comes from a glTF file ([`gltf_load`]), a built-in generator
+//! ([`builtin`]) or a TOML scene file ([`file`]) that names one of those and
+//! adds a ground plane, a camera and lights.
+//!
+//! World-space vertex positions are kept in `f64` so that a model far from
+//! the origin loses no precision before the camera-relative conversion that
+//! both the oracle and the GPU passes make.
+
+pub mod builtin;
+pub mod file;
+pub mod gltf_load;
+pub mod gltf_write;
+
+use glam::{DVec2, DVec3};
+
+/// How a material's alpha is interpreted (glTF `alphaMode`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum AlphaMode {
+    #[default]
+    Opaque,
+    Mask,
+    Blend,
+}
+
+/// A base-colour texture, kept for alpha-masked casters.
+#[derive(Clone, Debug)]
+pub struct Texture {
+    /// Where the image came from (a file path, or "embedded").
+    pub source: String,
+    /// The decoded image; `None` when it could not be loaded (a warning was logged).
+    pub image: Option<image::RgbaImage>,
+}
+
+/// A glTF material, reduced to what shadows need.
+#[derive(Clone, Debug)]
+pub struct Material {
+    pub name: String,
+    pub alpha_mode: AlphaMode,
+    /// glTF `alphaCutoff` (0.5 when absent); used with [`AlphaMode::Mask`].
+    pub alpha_cutoff: f32,
+    pub base_color_factor: [f32; 4],
+    pub base_color_texture: Option<Texture>,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Material {
+            name: "default".into(),
+            alpha_mode: AlphaMode::Opaque,
+            alpha_cutoff: 0.5,
+            base_color_factor: [1.0; 4],
+            base_color_texture: None,
+        }
+    }
+}
+
+/// A triangle mesh in world space (one glTF primitive, or a generated object).
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    /// Name for messages: the glTF mesh name (with primitive index) or the generator's name.
+    pub name: String,
+    /// World-space vertex positions.
+    pub positions: Vec<DVec3>,
+    /// Texture coordinates, one per position, when the source has them.
+    pub uvs: Option<Vec<DVec2>>,
+    /// Triangles as indices into `positions`, counter-clockwise = front.
+    pub indices: Vec<[u32; 3]>,
+    /// Index into [`Scene::materials`].
+    pub material: Option<usize>,
+    /// Every edge is shared by exactly two consistently oriented triangles
+    /// (see [`is_closed`]); closed meshes cast only from their light back faces.
+    pub closed: bool,
+}
+
+impl Mesh {
+    /// Builds a mesh and computes [`Mesh::closed`].
+    pub fn new(name: impl Into<String>, positions: Vec<DVec3>, indices: Vec<[u32; 3]>) -> Self {
+        let closed = is_closed(&indices);
+        Mesh {
+            name: name.into(),
+            positions,
+            uvs: None,
+            indices,
+            material: None,
+            closed,
+        }
+    }
+
+    /// The three world-space corners of triangle `i`.
+    pub fn triangle(&self, i: usize) -> [DVec3; 3] {
+        let [a, b, c] = self.indices[i];
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
+    }
+
+    /// Applies an affine transform to every vertex (and keeps orientation
+    /// counter-clockwise when the transform mirrors).
+    pub fn transform(&mut self, m: &glam::DMat4) {
+        for p in &mut self.positions {
+            *p = m.transform_point3(*p);
+        }
+        if m.determinant() < 0.0 {
+            for t in &mut self.indices {
+                t.swap(1, 2);
+            }
+        }
+    }
+}
+
+/// Whether every edge of `indices` is shared by exactly two triangles that
+/// traverse it in opposite directions (a closed, consistently oriented
+/// two-manifold). Positions are compared by index, so a mesh must be welded.
+pub fn is_closed(indices: &[[u32; 3]]) -> bool {
+    use std::collections::HashMap;
+    if indices.is_empty() {
+        return false;
+    }
+    // Directed edge -> count. Closed and consistent: each directed edge once,
+    // and its reverse once.
+    let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(indices.len() * 3);
+    for t in indices {
+        for k in 0..3 {
+            let e = (t[k], t[(k + 1) % 3]);
+            if e.0 == e.1 {
+                return false;
+            }
+            *directed.entry(e).or_insert(0) += 1;
+        }
+    }
+    directed
+        .iter()
+        .all(|(&(a, b), &n)| n == 1 && directed.get(&(b, a)) == Some(&1))
+}
+
+/// A pinhole camera. `fov_y_deg` is the full vertical field of view.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Camera {
+    pub eye: DVec3,
+    pub target: DVec3,
+    pub up: DVec3,
+    pub fov_y_deg: f64,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Camera {
+    /// Checks that every field is finite and usable; the error names the field.
+    pub fn validate(&self) -> crate::Result<()> {
+        let bad = |what: &str| Err(crate::Error::InvalidInput(format!("camera: {what}")));
+        for (name, v) in [("eye", self.eye), ("target", self.target), ("up", self.up)] {
+            if !v.is_finite() {
+                return bad(&format!("`{name}` is not finite: {v:?}"));
+            }
+        }
+        if !(self.fov_y_deg.is_finite() && self.fov_y_deg > 0.0 && self.fov_y_deg < 180.0) {
+            return bad(&format!(
+                "`fov_y_deg` must be in (0, 180), got {}",
+                self.fov_y_deg
+            ));
+        }
+        if self.width == 0 || self.height == 0 {
+            return bad(&format!(
+                "image size must be non-zero, got {}x{}",
+                self.width, self.height
+            ));
+        }
+        if self.width > 16384 || self.height > 16384 {
+            return bad(&format!(
+                "image size at most 16384x16384, got {}x{}",
+                self.width, self.height
+            ));
+        }
+        let fwd = self.target - self.eye;
+        if fwd.length_squared() == 0.0 {
+            return bad("`eye` and `target` coincide");
+        }
+        if fwd.cross(self.up).length_squared() == 0.0 {
+            return bad("`up` is parallel to the view direction");
+        }
+        Ok(())
+    }
+
+    /// Orthonormal camera basis (right, up, forward), forward pointing at the target.
+    pub fn basis(&self) -> (DVec3, DVec3, DVec3) {
+        let f = (self.target - self.eye).normalize();
+        let r = f.cross(self.up).normalize();
+        let u = r.cross(f);
+        (r, u, f)
+    }
+
+    /// Unit direction of the primary ray through the centre of pixel (x, y);
+    /// y = 0 is the top row.
+    pub fn ray_direction(&self, x: u32, y: u32) -> DVec3 {
+        let (r, u, f) = self.basis();
+        let tan_half = (self.fov_y_deg.to_radians() * 0.5).tan();
+        let aspect = self.width as f64 / self.height as f64;
+        let sx = ((x as f64 + 0.5) / self.width as f64 * 2.0 - 1.0) * tan_half * aspect;
+        let sy = (1.0 - (y as f64 + 0.5) / self.height as f64 * 2.0) * tan_half;
+        (f + r * sx + u * sy).normalize()
+    }
+}
+
+/// A loaded scene: world-space meshes, materials and any cameras the source defined.
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    pub meshes: Vec<Mesh>,
+    pub materials: Vec<Material>,
+    pub cameras: Vec<Camera>,
+    /// Non-fatal problems met while loading (also logged with `log::warn!`),
+    /// for example a missing texture that shadows do not need.
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// Total number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.meshes.iter().map(|m| m.indices.len()).sum()
+    }
+
+    /// World-space bounding box (min, max); `None` for an empty scene.
+    pub fn bounds(&self) -> Option<(DVec3, DVec3)> {
+        let mut it = self.meshes.iter().flat_map(|m| m.positions.iter());
+        let first = *it.next()?;
+        Some(it.fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))))
+    }
+
+    /// Every triangle of the scene flattened, in mesh order: the global
+    /// triangle id used by view samples is the index into this list.
+    pub fn triangles(&self) -> Vec<SceneTriangle> {
+        let mut out = Vec::with_capacity(self.triangle_count());
+        for (mi, m) in self.meshes.iter().enumerate() {
+            for (ti, _) in m.indices.iter().enumerate() {
+                out.push(SceneTriangle {
+                    vertices: m.triangle(ti),
+                    mesh: mi as u32,
+                    closed: m.closed,
+                });
+            }
+        }
+        out
+    }
+
+    /// Adds a square ground plane of two triangles at height `y`, normal +y.
+    pub fn add_ground(&mut self, y: f64, half_size: f64) {
+        let h = half_size;
+        let positions = vec![
+            DVec3::new(-h, y, -h),
+            DVec3::new(h, y, -h),
+            DVec3::new(h, y, h),
+            DVec3::new(-h, y, h),
+        ];
+        // Counter-clockwise seen from above (+y).
+        let indices = vec![[0, 3, 2], [0, 2, 1]];
+        let mut m = Mesh::new("ground", positions, indices);
+        m.closed = false;
+        self.meshes.push(m);
+    }
+}
+
+/// One triangle of a flattened scene, with the facts the shadow passes need.
+#[derive(Clone, Copy, Debug)]
+pub struct SceneTriangle {
+    pub vertices: [DVec3; 3],
+    /// Index of the mesh it came from.
+    pub mesh: u32,
+    /// Whether that mesh is closed.
+    pub closed: bool,
+}
