@@ -58,10 +58,8 @@ fn main() {
     }
 
     if !errors.is_empty() {
-        // Printed and panicked with, so cargo shows the file:line messages either way.
-        let all = errors.join("\n");
-        eprintln!("{all}");
-        panic!("shader compilation failed:\n{all}");
+        // Cargo shows the panic message: every error with its file and line.
+        panic!("shader compilation failed:\n{}", errors.join("\n"));
     }
 
     let target = out_dir.join("shaders.rs");
@@ -117,8 +115,11 @@ fn compile(
             Some(&options),
         )
         .map_err(|e| match e {
-            // shaderc's text already reads "<path>:<line>: error: ...".
-            shaderc::Error::CompilationError(_, text) => text,
+            // shaderc's lines read "<path>:<line>: error: ..."; the header
+            // names which shader an error in an included file came from.
+            shaderc::Error::CompilationError(count, text) => {
+                format!("{name}: {count} error(s):\n{}", text.trim_end())
+            }
             other => format!("{name}: {other}"),
         })?;
     Ok(artifact.as_binary().to_vec())

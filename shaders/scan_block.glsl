@@ -16,7 +16,7 @@ layout(constant_id = 1) const uint VECS = SCAN_VECS_PER_THREAD;
 layout(local_size_x_id = 0) in;
 
 // Upper bound of VECS, so the per-invocation values live in a fixed-size array.
-#define MAX_VECS 8
+#define MAX_VECS 16
 
 #include "scan_io.glsl"
 

@@ -47,7 +47,7 @@ impl Doc {
     }
 
     fn view(&mut self, bytes: &[u8]) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let views = self.root["bufferViews"].as_array_mut().unwrap();
@@ -155,14 +155,14 @@ impl Doc {
     fn glb(&self) -> Vec<u8> {
         let mut root = self.root.clone();
         let mut bin = self.bin.clone();
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         if !bin.is_empty() {
             root["buffers"] = json!([{"byteLength": bin.len()}]);
         }
         let mut js = serde_json::to_vec(&root).unwrap();
-        while js.len() % 4 != 0 {
+        while !js.len().is_multiple_of(4) {
             js.push(b' ');
         }
         let total = 12 + 8 + js.len() + if bin.is_empty() { 0 } else { 8 + bin.len() };

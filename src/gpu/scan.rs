@@ -34,7 +34,7 @@ use crate::{Error, Result};
 pub struct ScanConfig {
     /// Invocations per workgroup.
     pub workgroup_size: u32,
-    /// `uvec4` loads per invocation (1 to 8).
+    /// `uvec4` loads per invocation (1 to 16).
     pub vecs_per_thread: u32,
     /// Read the input through uniform texel buffers (`usamplerBuffer`)
     /// instead of storage buffers.
@@ -42,15 +42,16 @@ pub struct ScanConfig {
 }
 
 impl ScanConfig {
-    /// The measured best shape for the device kind: on lavapipe
-    /// (`/work/shared/notes/lavapipe.md`) texel-buffer loads and long
-    /// per-invocation runs; on GPUs storage buffers, 256 invocations with 2
-    /// loads each.
+    /// The shape for the device kind. On lavapipe: texel-buffer loads and
+    /// long per-invocation runs (256 x 8 uvec4s), measured best of 50 shapes
+    /// by `tests/scan.rs::tune_scan_shapes` (about 3x faster than storage
+    /// loads; 32 to 512 invocations differ little). On GPUs: storage buffers,
+    /// 256 invocations with 2 loads each (coalesced, enough workgroups).
     pub fn for_device(info: &DeviceInfo) -> Self {
         let wg_max = info.limits.max_compute_work_group_size[0]
             .min(info.limits.max_compute_work_group_invocations);
         let (workgroup_size, vecs_per_thread, texel_loads) = if info.is_cpu() {
-            (128, 4, true)
+            (256, 8, true)
         } else {
             (256, 2, false)
         };

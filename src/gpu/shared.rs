@@ -14,7 +14,7 @@ pub const SCAN_WORKGROUP_SIZE: u32 = 256;
 /// `SCAN_VECS_PER_THREAD`: default uvec4 loads per scan invocation.
 pub const SCAN_VECS_PER_THREAD: u32 = 2;
 /// `MAX_VECS` of `scan_block.comp`: the most uvec4 loads per invocation.
-pub const SCAN_MAX_VECS_PER_THREAD: u32 = 8;
+pub const SCAN_MAX_VECS_PER_THREAD: u32 = 16;
 /// `SCAN_FLAG_BLOCK_OFFSETS`.
 pub const SCAN_FLAG_BLOCK_OFFSETS: u32 = 1;
 

@@ -362,9 +362,14 @@ fn torus_knot(triangles: usize) -> Builder {
     b
 }
 
-fn camera(eye: DVec3, target: DVec3) -> Camera {
+/// A 512 x 512 camera with a 45-degree field of view looking at `target`
+/// from `distance` away, from the azimuth (degrees from +z towards +x) and
+/// elevation (degrees above the ground plane) given.
+fn orbit(target: DVec3, distance: f64, azimuth_deg: f64, elevation_deg: f64) -> Camera {
+    let (a, e) = (azimuth_deg.to_radians(), elevation_deg.to_radians());
+    let dir = DVec3::new(a.sin() * e.cos(), e.sin(), a.cos() * e.cos());
     Camera {
-        eye,
+        eye: target + dir * distance,
         target,
         up: DVec3::Y,
         fov_y_deg: 45.0,
@@ -420,10 +425,10 @@ fn demo() -> Builtin {
     let knot = knot.into_mesh("torus_knot");
     Builtin {
         scene: with_ground(vec![sphere, cube, knot], Vec::new(), GROUND),
-        camera: camera(DVec3::new(5.5, 4.5, 6.5), DVec3::new(0.0, 0.5, 0.0)),
+        camera: orbit(DVec3::new(0.0, 0.6, 0.0), 9.0, 40.0, 45.0),
         lights: vec![Light {
             shape: LightShape::Sphere {
-                position: DVec3::new(3.0, 7.0, 2.0),
+                position: DVec3::new(-4.5, 5.5, -1.0),
                 radius: 0.6,
             },
             samples: 128,
@@ -437,8 +442,8 @@ fn plane_sphere() -> Builtin {
     let sphere = uv_sphere(DVec3::new(0.0, 1.5, 0.0), 1.0, 32, 16).into_mesh("sphere");
     Builtin {
         scene: with_ground(vec![sphere], Vec::new(), GROUND),
-        camera: camera(DVec3::new(4.5, 4.0, 5.5), DVec3::new(0.0, 0.6, 0.0)),
-        lights: vec![point_light(DVec3::new(2.0, 6.0, 1.0))],
+        camera: orbit(DVec3::new(0.0, 0.8, 0.0), 7.0, 40.0, 45.0),
+        lights: vec![point_light(DVec3::new(-3.0, 5.0, 1.0))],
     }
 }
 
@@ -451,8 +456,8 @@ fn torus_knot_scene(triangles: usize) -> Builtin {
     );
     Builtin {
         scene: with_ground(vec![knot.into_mesh("torus_knot")], Vec::new(), GROUND),
-        camera: camera(DVec3::new(4.5, 4.5, 5.5), DVec3::new(0.0, 0.6, 0.0)),
-        lights: vec![point_light(DVec3::new(1.0, 7.0, 2.0))],
+        camera: orbit(DVec3::new(0.0, 0.8, 0.0), 8.0, 40.0, 45.0),
+        lights: vec![point_light(DVec3::new(-2.0, 6.0, -1.0))],
     }
 }
 
@@ -474,8 +479,8 @@ fn columns() -> Builtin {
     }
     Builtin {
         scene: with_ground(meshes, Vec::new(), GROUND),
-        camera: camera(DVec3::new(2.5, 5.0, 8.0), DVec3::new(0.0, 0.8, -0.5)),
-        lights: vec![point_light(DVec3::new(-3.0, 6.0, 4.5))],
+        camera: orbit(DVec3::new(0.0, 1.0, 0.0), 9.0, 20.0, 45.0),
+        lights: vec![point_light(DVec3::new(-4.0, 5.0, -3.0))],
     }
 }
 
@@ -497,8 +502,8 @@ fn hairball() -> Builtin {
     }
     Builtin {
         scene: with_ground(vec![b.into_mesh("hairball")], Vec::new(), GROUND),
-        camera: camera(DVec3::new(4.5, 4.0, 5.5), DVec3::new(0.0, 0.8, 0.0)),
-        lights: vec![point_light(DVec3::new(1.5, 7.0, 1.0))],
+        camera: orbit(DVec3::new(0.0, 1.0, 0.0), 7.0, 40.0, 45.0),
+        lights: vec![point_light(DVec3::new(-2.0, 6.0, -1.0))],
     }
 }
 
@@ -549,8 +554,8 @@ fn fence() -> Builtin {
     };
     Builtin {
         scene: with_ground(vec![quad], vec![material], GROUND),
-        camera: camera(DVec3::new(2.5, 3.0, 5.0), DVec3::new(0.0, 0.6, -1.0)),
-        lights: vec![point_light(DVec3::new(0.8, 4.5, 3.0))],
+        camera: orbit(DVec3::new(0.0, 0.6, -1.0), 7.0, 25.0, 45.0),
+        lights: vec![point_light(DVec3::new(-1.5, 3.5, 2.5))],
     }
 }
 
@@ -616,7 +621,7 @@ fn stairs() -> Builtin {
     b.quad_facing([l.1[n], l.2[n], r.2[n], r.1[n]], DVec3::Z);
     Builtin {
         scene: with_ground(vec![b.into_mesh("stairs")], Vec::new(), GROUND),
-        camera: camera(DVec3::new(4.5, 4.5, -5.5), DVec3::new(0.0, 0.6, 0.0)),
-        lights: vec![point_light(DVec3::new(4.0, 6.5, 1.0))],
+        camera: orbit(DVec3::new(0.0, 0.8, 0.0), 8.0, 140.0, 45.0),
+        lights: vec![point_light(DVec3::new(-4.0, 4.0, 3.0))],
     }
 }

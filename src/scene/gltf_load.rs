@@ -31,7 +31,7 @@ use crate::{Error, Result};
 
 /// Accessors without a buffer view are zero-filled; this bounds their size
 /// so that a tiny malformed file cannot ask for gigabytes.
-const MAX_ZERO_FILLED_ELEMENTS: u64 = 1 << 24;
+const MAX_ZERO_FILLED_ELEMENTS: u64 = 1 << 22;
 
 /// Image height of cameras read from glTF; the width follows the aspect ratio.
 const CAMERA_HEIGHT: u32 = 512;
@@ -80,6 +80,9 @@ fn load(bytes: &[u8], base_dir: Option<&Path>, file: &Path) -> Result<Scene> {
         path: file.to_path_buf(),
         message,
     };
+    if bytes.is_empty() {
+        return Err(gltf_err("empty file".into()));
+    }
     let (json_bytes, blob) = if bytes.starts_with(b"glTF") {
         split_glb(bytes).map_err(gltf_err)?
     } else {
@@ -796,7 +799,7 @@ impl<'a> Loader<'a> {
             None => (0..n as u32).collect(),
         };
         let triangles = triangulate(mode, &indices);
-        if mode == Mode::Triangles && indices.len() % 3 != 0 {
+        if mode == Mode::Triangles && !indices.len().is_multiple_of(3) {
             self.warn(format!(
                 "mesh {name:?}: {} indices are not a multiple of 3; the last {} are ignored",
                 indices.len(),
@@ -992,20 +995,15 @@ impl<'a> Loader<'a> {
                 self.read_uri(uri)
                     .map_err(|e| format!("could not be read: {e}")),
             ),
-            (Some(uri), _) => {
-                let source = self
-                    .uri_path(uri)
-                    .map(|p| p.display().to_string())
-                    .unwrap_or_else(|_| uri.clone());
-                let bytes = self.read_uri(uri).map_err(|e| {
-                    if self.uri_path(uri).is_ok_and(|p| !p.exists()) {
-                        format!("not found ({e})")
-                    } else {
-                        format!("could not be read ({e})")
-                    }
-                });
-                (source, bytes)
-            }
+            (Some(uri), _) => match self.uri_path(uri) {
+                Ok(path) if !path.exists() => (path.display().to_string(), Err("not found".into())),
+                Ok(path) => (
+                    path.display().to_string(),
+                    self.read_uri(uri)
+                        .map_err(|e| format!("could not be read ({e})")),
+                ),
+                Err(e) => (uri.clone(), Err(format!("could not be read ({e})"))),
+            },
             (None, Some(v)) => (
                 format!("embedded (bufferView {})", v.value()),
                 self.view_bytes(v.value())
@@ -1089,7 +1087,7 @@ fn triangulate(mode: json::mesh::Mode, idx: &[u32]) -> Vec<[u32; 3]> {
         Mode::Triangles => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
         Mode::TriangleStrip => (0..idx.len().saturating_sub(2))
             .map(|i| {
-                if i % 2 == 0 {
+                if i.is_multiple_of(2) {
                     [idx[i], idx[i + 1], idx[i + 2]]
                 } else {
                     [idx[i], idx[i + 2], idx[i + 1]]

@@ -1,6 +1,6 @@
 //! Writing a [`Scene`] as one binary glTF 2.0 file (`.glb`).
 //!
-//! Each non-empty [`Mesh`] becomes one glTF mesh with one triangle primitive
+//! Each non-empty [`Mesh`](super::Mesh) becomes one glTF mesh with one triangle primitive
 //! on its own node with the identity transform: positions as `f32` (the
 //! scene's `f64` precision is lost, which is fine for the built-in scenes),
 //! `u32` indices and `TEXCOORD_0` when the mesh has texture coordinates.
@@ -31,7 +31,7 @@ struct Builder {
 impl Builder {
     /// Appends `bytes` (4-byte aligned) as a buffer view; returns its index.
     fn view(&mut self, bytes: &[u8], target: Option<u32>) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let mut v = json!({
@@ -167,7 +167,7 @@ fn glb_bytes(scene: &Scene) -> std::result::Result<Vec<u8>, String> {
         materials.push(mat);
     }
 
-    while b.bin.len() % 4 != 0 {
+    while !b.bin.len().is_multiple_of(4) {
         b.bin.push(0);
     }
     let mut root = json!({
@@ -200,7 +200,7 @@ fn glb_bytes(scene: &Scene) -> std::result::Result<Vec<u8>, String> {
     }
 
     let mut json_bytes = serde_json::to_vec(&root).map_err(|e| e.to_string())?;
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     let total = 12 + 8 + json_bytes.len() + if b.bin.is_empty() { 0 } else { 8 + b.bin.len() };

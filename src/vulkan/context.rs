@@ -27,11 +27,16 @@ pub struct ContextOptions {
 }
 
 impl ContextOptions {
-    /// Options with validation on (standard), everything else from the env:
-    /// what tests use.
+    /// Options with validation on, everything else from the env: what tests
+    /// use. Standard validation, or synchronization validation too when
+    /// `AFS_VALIDATION=sync`.
     pub fn validated() -> Self {
+        let level = match ValidationLevel::from_env() {
+            ValidationLevel::Synchronization => ValidationLevel::Synchronization,
+            _ => ValidationLevel::Standard,
+        };
         ContextOptions {
-            validation: Some(ValidationLevel::Standard),
+            validation: Some(level),
             ..Default::default()
         }
     }

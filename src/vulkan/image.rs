@@ -229,11 +229,11 @@ impl GpuContext {
     /// Replaces the image's texels with `data` (tightly packed, x fastest),
     /// whose size must be the image's byte size.
     pub fn upload_image(&self, image: &Image, data: &[u8]) -> Result<()> {
+        self.check_image_bytes(image, data.len() as u64)?;
         let staging = self.create_buffer_with_data(
             BufferDesc::upload(format!("{} (upload)", image.desc.name), data.len() as u64),
             data,
         )?;
-        self.check_image_bytes(image, data.len() as u64)?;
         let mut rec = self.begin()?;
         rec.barrier(Barrier::ComputeToTransfer);
         unsafe {

@@ -18,24 +18,52 @@
 //! destroyed before the device and the device before the instance, also on
 //! error paths.
 //!
-//! A later pass typically does:
+//! A later pass (count per light texel, scan, scatter) typically does:
 //! ```no_run
+//! use alias_free_shadows::gpu::scan::ScanPass;
+//! use alias_free_shadows::gpu::shaders;
 //! use alias_free_shadows::vulkan::*;
 //! # fn main() -> alias_free_shadows::Result<()> {
-//! let ctx = GpuContext::new(&ContextOptions::default())?;
-//! let data = ctx.create_buffer_with_data(BufferDesc::storage("counts", 1024 * 4), &[1u32; 1024])?;
-//! let pipeline = ctx.create_compute_pipeline(&ComputePipelineDesc {
-//!     name: "my_pass",
-//!     spirv: alias_free_shadows::gpu::shaders::SCAN_REDUCE, // your shader's words
-//!     bindings: &[DescriptorKind::StorageBuffer, DescriptorKind::StorageBuffer],
-//!     push_constant_bytes: 16,
-//!     specialization: &[(0, 256)],
+//! let ctx = GpuContext::new(&ContextOptions::default())?; // AFS_VALIDATION, AFS_DEVICE
+//! let texels = 512 * 512u64;
+//! // Buffers the pass owns (GPU-only; `upload`/`read_buffer` pick mapped
+//! // copies or staging as the memory allows).
+//! let counts = ctx.create_buffer(BufferDesc::storage("counts", 4 * texels))?;
+//! let offsets = ctx.create_buffer(BufferDesc::storage("offsets", 4 * (texels + 1)))?;
+//! // Pipelines are made once: bindings 0, 1, ... of set 0 by kind, push
+//! // constants, specialization constants (id, value).
+//! let count_pass = ctx.create_compute_pipeline(&ComputePipelineDesc {
+//!     name: "count",
+//!     spirv: shaders::BINDING_PROBE, // your shaders::COUNT_SAMPLES
+//!     bindings: &[DescriptorKind::StorageBuffer, DescriptorKind::UniformBuffer],
+//!     push_constant_bytes: 4,
+//!     specialization: &[(0, 64)],
 //! })?;
+//! let frame = ctx.create_buffer(BufferDesc::uniform("frame", 160))?;
+//! let mut scan = ScanPass::new(&ctx)?;
+//! let mut profiler = Profiler::new(&ctx, 8)?;
+//!
 //! let mut rec = ctx.begin()?;
+//! rec.fill_buffer(counts.whole(), 0)?;
 //! rec.barrier(Barrier::TransferToCompute);
-//! rec.dispatch(&pipeline, &[Binding::storage(&data), Binding::storage(&data)], &[0u8; 16], [1, 1, 1])?;
-//! ctx.submit_and_wait(rec)?;
-//! let back: Vec<u32> = ctx.read_buffer(&data, 0, 1024)?;
+//! let p = profiler.begin(&mut rec, "count")?;
+//! rec.dispatch(
+//!     &count_pass,
+//!     &[Binding::storage(&counts), Binding::uniform(&frame)],
+//!     &1024u32.to_ne_bytes(),
+//!     [1024 / 64, 1, 1],
+//! )?;
+//! profiler.end(&mut rec, p);
+//! let p = profiler.begin(&mut rec, "scan")?;
+//! scan.record(&mut rec, counts.whole(), offsets.whole(), texels as u32)?; // offsets[texels] = total
+//! profiler.end(&mut rec, p);
+//! rec.barrier(Barrier::ComputeToCompute); // before the scatter reads `offsets`
+//! // ... scatter dispatch ...
+//! ctx.submit_and_wait(rec)?; // fence with timeout; validation errors become Err
+//! let total: Vec<u32> = ctx.read_buffer(&offsets, 4 * texels, 1)?;
+//! for t in profiler.results()? {
+//!     println!("{}: {:?} ms", t.name, t.ms);
+//! }
 //! # Ok(()) }
 //! ```
 
