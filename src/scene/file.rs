@@ -390,11 +390,13 @@ fn load_geometry(spec: &str, base: &Path) -> Result<SceneDescription> {
         .map(|e| e.to_ascii_lowercase());
     match ext.as_deref() {
         Some("gltf") | Some("glb") => {}
-        _ => return Err(Error::InvalidInput(format!(
+        _ => {
+            return Err(Error::InvalidInput(format!(
             "{}: a scene is a .toml scene file, a .gltf or .glb file, or builtin:NAME (one of {})",
             path.display(),
             builtin::NAMES.join(", ")
-        ))),
+        )))
+        }
     }
     let scene = gltf_load::load_gltf(&path)?;
     if scene.triangle_count() == 0 {

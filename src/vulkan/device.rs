@@ -363,6 +363,10 @@ impl fmt::Display for DeviceInfo {
                 "minStorageBufferOffsetAlignment",
                 l.min_storage_buffer_offset_alignment.to_string(),
             ),
+            (
+                "minTexelBufferOffsetAlignment",
+                l.min_texel_buffer_offset_alignment.to_string(),
+            ),
             ("subgroup size", self.subgroup_size.to_string()),
             (
                 "subgroup operations",

@@ -1,0 +1,327 @@
+//! CPU twin of `caster_setup.comp`: which triangles cast, their four planes
+//! (paper §3.3), and for every light face the conservative texel rectangle
+//! and texel-space edge functions of their projection.
+//!
+//! Rules (no bias anywhere):
+//! - a degenerate triangle (zero or non-finite normal) never casts;
+//! - a triangle whose plane contains the light cannot block any segment to the light;
+//! - a triangle of a closed mesh casts only when it faces away from the light
+//!   (then no triangle is both caster and receiver: no acne);
+//! - per face, the triangle is clipped to the face's fitted window pyramid;
+//!   nothing left, or everything left farther than the farthest sample: culled there.
+
+use glam::{Vec2, Vec3};
+
+use super::light_view::{FaceWindow, LightView};
+
+/// A caster's planes, evaluated on `q = p - light.origin()`:
+/// blocked ⇔ `dot(support.xyz, q) + support.w < 0` and every
+/// `dot(edge.xyz, q) + edge.w > 0` (and `p` is not on the caster itself).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct CasterPlanes {
+    /// Supporting plane, positive on the light's side.
+    pub support: [f32; 4],
+    /// The three planes through the light and each edge (through each
+    /// edge along the direction for a directional light), positive inside.
+    pub edges: [[f32; 4]; 3],
+}
+
+impl CasterPlanes {
+    /// Whether the caster blocks the light from `q` (light-relative position).
+    pub fn blocks(&self, q: Vec3) -> bool {
+        let d = |p: &[f32; 4]| p[0] * q.x + p[1] * q.y + p[2] * q.z + p[3];
+        d(&self.support) < 0.0 && self.edges.iter().all(|e| d(e) > 0.0)
+    }
+}
+
+/// One (caster, face) pair to rasterize.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CasterFace {
+    pub triangle: u32,
+    pub face: u32,
+    /// Inclusive texel rectangle (x0, y0, x1, y1).
+    pub rect: [u32; 4],
+    /// Texel-space edge functions a·x + b·y + c ≥ 0 inside, when the whole
+    /// triangle lies in front of the light (`None`: use the rectangle only).
+    pub edges: Option<[[f32; 3]; 3]>,
+}
+
+/// What the setup decided for the counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CasterCounts {
+    pub submitted: u32,
+    pub degenerate: u32,
+    pub front_facing_closed: u32,
+    pub culled_frustum: u32,
+    pub rasterized: u32,
+}
+
+/// Margin in texels that keeps rectangles and edge tests conservative
+/// against f32 rounding between this pass and the sample projection.
+pub const TEXEL_MARGIN: f32 = 0.01;
+
+/// Planes of triangle `v` (camera-relative); `None` when it cannot cast.
+pub fn caster_planes(light: &LightView, v: [Vec3; 3], closed: bool) -> Result<CasterPlanes, Skip> {
+    let o = light.origin();
+    let q = [v[0] - o, v[1] - o, v[2] - o];
+    let n = (q[1] - q[0]).cross(q[2] - q[0]);
+    if !n.is_finite() || n == Vec3::ZERO {
+        return Err(Skip::Degenerate);
+    }
+    // Signed distance of the light from the plane (times |n|).
+    let s_light = match light {
+        LightView::Point { .. } => -n.dot(q[0]),
+        LightView::Directional { direction } => n.dot(-*direction),
+    };
+    if s_light == 0.0 || !s_light.is_finite() {
+        return Err(Skip::Degenerate);
+    }
+    if closed && s_light > 0.0 {
+        return Err(Skip::FrontFacingClosed);
+    }
+    let sign = s_light.signum();
+    let ns = n * sign;
+    let support = [ns.x, ns.y, ns.z, -ns.dot(q[0])];
+    let mut edges = [[0.0; 4]; 3];
+    for (k, e) in edges.iter_mut().enumerate() {
+        let a = q[k];
+        let b = q[(k + 1) % 3];
+        let c = q[(k + 2) % 3];
+        let (m, w) = match light {
+            // Plane through the light (the origin) and the edge.
+            LightView::Point { .. } => (a.cross(b), 0.0),
+            LightView::Directional { direction } => {
+                let m = (b - a).cross(*direction);
+                (m, -m.dot(a))
+            }
+        };
+        // Orient inside (towards the third vertex) as positive.
+        let (m, w) = if m.dot(c) + w < 0.0 { (-m, -w) } else { (m, w) };
+        *e = [m.x, m.y, m.z, w];
+    }
+    Ok(CasterPlanes { support, edges })
+}
+
+/// Why a triangle does not cast.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Skip {
+    Degenerate,
+    FrontFacingClosed,
+}
+
+/// Clips the polygon `poly` (face coordinates X, Y, z) by `a·X + b·Y + c·z ≥ 0`.
+fn clip(poly: &[Vec3], plane: Vec3) -> Vec<Vec3> {
+    let mut out = Vec::with_capacity(poly.len() + 1);
+    for i in 0..poly.len() {
+        let p = poly[i];
+        let q = poly[(i + 1) % poly.len()];
+        let dp = plane.dot(p);
+        let dq = plane.dot(q);
+        if dp >= 0.0 {
+            out.push(p);
+        }
+        if (dp >= 0.0) != (dq >= 0.0) {
+            let t = dp / (dp - dq);
+            out.push(p + (q - p) * t);
+        }
+    }
+    out
+}
+
+/// The texel rectangle and edge functions of triangle `v` in face `f`, or
+/// `None` when nothing of it can block a sample of that face.
+pub fn caster_face(
+    light: &LightView,
+    window: &FaceWindow,
+    f: usize,
+    v: [Vec3; 3],
+    resolution: u32,
+) -> Option<([u32; 4], Option<[[f32; 3]; 3]>)> {
+    if !window.valid {
+        return None;
+    }
+    let (r, u, w) = light.basis(f);
+    let o = light.origin();
+    let face = |p: Vec3| {
+        let d = p - o;
+        Vec3::new(d.dot(r), d.dot(u), d.dot(w))
+    };
+    let tri = [face(v[0]), face(v[1]), face(v[2])];
+    // Window bounds in projected coordinates.
+    let x1 = window.x0 + resolution as f32 / window.sx;
+    let y1 = window.y0 + resolution as f32 / window.sy;
+    let point = matches!(light, LightView::Point { .. });
+    let mut poly = tri.to_vec();
+    if point {
+        // z >= 0 and x0·z <= X <= x1·z, y0·z <= Y <= y1·z: the window pyramid.
+        for plane in [
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, -window.x0),
+            Vec3::new(-1.0, 0.0, x1),
+            Vec3::new(0.0, 1.0, -window.y0),
+            Vec3::new(0.0, -1.0, y1),
+        ] {
+            poly = clip(&poly, plane);
+            if poly.is_empty() {
+                return None;
+            }
+        }
+    } else {
+        for plane in [
+            Vec3::new(1.0, 0.0, -window.x0),
+            Vec3::new(-1.0, 0.0, x1),
+            Vec3::new(0.0, 1.0, -window.y0),
+            Vec3::new(0.0, -1.0, y1),
+        ] {
+            poly = clip_ortho(&poly, plane);
+            if poly.is_empty() {
+                return None;
+            }
+        }
+    }
+    let z_min = poly.iter().map(|p| p.z).fold(f32::INFINITY, f32::min);
+    // A blocking point lies strictly nearer to the light than its sample.
+    if z_min > window.z_far * (1.0 + 1e-5) + 1e-30 {
+        return None;
+    }
+    let z_eps = window.z_far * 1e-6;
+    let project = |p: Vec3| -> Option<Vec2> {
+        if point {
+            (p.z > z_eps).then(|| Vec2::new(p.x / p.z, p.y / p.z))
+        } else {
+            Some(Vec2::new(p.x, p.y))
+        }
+    };
+    let full = [0, 0, resolution - 1, resolution - 1];
+    let to_texel =
+        |q: Vec2| Vec2::new((q.x - window.x0) * window.sx, (q.y - window.y0) * window.sy);
+    let mut lo = Vec2::splat(f32::INFINITY);
+    let mut hi = Vec2::splat(f32::NEG_INFINITY);
+    let mut touches_light = false;
+    for p in &poly {
+        match project(*p) {
+            Some(q) => {
+                let t = to_texel(q);
+                lo = lo.min(t);
+                hi = hi.max(t);
+            }
+            None => touches_light = true,
+        }
+    }
+    let max = resolution as f32 - 1.0;
+    let rect = if touches_light || !lo.is_finite() || !hi.is_finite() {
+        full
+    } else {
+        let cl = |x: f32| x.clamp(0.0, max) as u32;
+        [
+            cl((lo.x - TEXEL_MARGIN).floor()),
+            cl((lo.y - TEXEL_MARGIN).floor()),
+            cl((hi.x + TEXEL_MARGIN).floor()),
+            cl((hi.y + TEXEL_MARGIN).floor()),
+        ]
+    };
+    // Edge functions of the unclipped triangle's projection, when every
+    // vertex is in front of the light (then the projection is a triangle
+    // containing the clipped polygon's).
+    let edges = (|| {
+        let t: Vec<Vec2> = tri
+            .iter()
+            .map(|p| project(*p).map(to_texel))
+            .collect::<Option<_>>()?;
+        let area = (t[1] - t[0]).perp_dot(t[2] - t[0]);
+        if !area.is_finite() || area.abs() < 1e-6 {
+            return None;
+        }
+        let s = area.signum();
+        let mut e = [[0.0f32; 3]; 3];
+        for k in 0..3 {
+            let a = t[k];
+            let b = t[(k + 1) % 3];
+            // Inside: s · cross(b - a, x - a) >= 0.
+            let ea = -(b.y - a.y) * s;
+            let eb = (b.x - a.x) * s;
+            e[k] = [ea, eb, -(ea * a.x + eb * a.y)];
+        }
+        Some(e)
+    })();
+    Some((rect, edges))
+}
+
+/// Orthographic clipping of face-space points by `a·X + b·Y + c ≥ 0` (plane.z = c).
+fn clip_ortho(poly: &[Vec3], plane: Vec3) -> Vec<Vec3> {
+    let d = |p: Vec3| plane.x * p.x + plane.y * p.y + plane.z;
+    let mut out = Vec::with_capacity(poly.len() + 1);
+    for i in 0..poly.len() {
+        let p = poly[i];
+        let q = poly[(i + 1) % poly.len()];
+        let (dp, dq) = (d(p), d(q));
+        if dp >= 0.0 {
+            out.push(p);
+        }
+        if (dp >= 0.0) != (dq >= 0.0) {
+            out.push(p + (q - p) * (dp / (dp - dq)));
+        }
+    }
+    out
+}
+
+/// Whether the texel-space square [x0, x1] × [y0, y1] may overlap a triangle
+/// with these edge functions (conservative).
+pub fn square_overlaps(edges: &[[f32; 3]; 3], x0: f32, y0: f32, x1: f32, y1: f32) -> bool {
+    let cx = 0.5 * (x0 + x1);
+    let cy = 0.5 * (y0 + y1);
+    let hx = 0.5 * (x1 - x0) + TEXEL_MARGIN;
+    let hy = 0.5 * (y1 - y0) + TEXEL_MARGIN;
+    edges
+        .iter()
+        .all(|e| e[0] * cx + e[1] * cy + e[2] + e[0].abs() * hx + e[1].abs() * hy >= 0.0)
+}
+
+/// Runs the setup over all triangles: planes per triangle (`None` when it
+/// does not cast) and the (caster, face) pairs to rasterize.
+pub fn setup_casters(
+    light: &LightView,
+    windows: &[FaceWindow],
+    triangles: &[([Vec3; 3], bool)],
+    resolution: u32,
+) -> (Vec<Option<CasterPlanes>>, Vec<CasterFace>, CasterCounts) {
+    let mut planes = Vec::with_capacity(triangles.len());
+    let mut faces = Vec::new();
+    let mut counts = CasterCounts {
+        submitted: triangles.len() as u32,
+        ..Default::default()
+    };
+    for (i, &(v, closed)) in triangles.iter().enumerate() {
+        match caster_planes(light, v, closed) {
+            Err(Skip::Degenerate) => {
+                counts.degenerate += 1;
+                planes.push(None);
+            }
+            Err(Skip::FrontFacingClosed) => {
+                counts.front_facing_closed += 1;
+                planes.push(None);
+            }
+            Ok(p) => {
+                let before = faces.len();
+                for (f, w) in windows.iter().enumerate() {
+                    if let Some((rect, edges)) = caster_face(light, w, f, v, resolution) {
+                        faces.push(CasterFace {
+                            triangle: i as u32,
+                            face: f as u32,
+                            rect,
+                            edges,
+                        });
+                    }
+                }
+                if faces.len() == before {
+                    counts.culled_frustum += 1;
+                    planes.push(None);
+                } else {
+                    counts.rasterized += 1;
+                    planes.push(Some(p));
+                }
+            }
+        }
+    }
+    (planes, faces, counts)
+}

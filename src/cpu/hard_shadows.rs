@@ -1,0 +1,60 @@
+//! The whole hard-shadow frame on the CPU, stage by stage, exactly as the
+//! GPU runs it (the twins of every pass chained): the reference each GPU
+//! stage is compared with, and a test of the algorithm itself against the
+//! oracle.
+
+use glam::Vec3;
+
+use super::casters::{setup_casters, CasterCounts};
+use super::light_view::{fit_windows, LightView};
+use super::occlusion::{occlusion, OcclusionCounts};
+use super::texel_lists::{build_texel_lists, TexelLists, NOT_LISTED};
+
+/// Per-sample results and the counters of a CPU hard-shadow frame.
+#[derive(Clone, Debug)]
+pub struct HardShadows {
+    /// Per sample: `None` where there is no sample or it faces away from the
+    /// light (unlit without any shadow test), else whether it is lit.
+    pub lit: Vec<Option<bool>>,
+    pub lists: TexelLists,
+    pub casters: CasterCounts,
+    pub occlusion: OcclusionCounts,
+}
+
+/// Runs the twins: fit, lists, caster setup, rasterization and occlusion.
+/// `samples` are camera-relative (position, normal) with their triangle
+/// ids (`u32::MAX` for none); `triangles` camera-relative with their mesh's
+/// closed flag.
+pub fn hard_shadows(
+    light: &LightView,
+    samples: &[Option<(Vec3, Vec3)>],
+    sample_triangles: &[u32],
+    triangles: &[([Vec3; 3], bool)],
+    resolution: u32,
+) -> HardShadows {
+    let listed: Vec<(Vec3, Vec3)> = samples.iter().flatten().copied().collect();
+    let windows = fit_windows(light, &listed, resolution);
+    let lists = build_texel_lists(light, &windows, samples, resolution);
+    let (planes, pairs, casters) = setup_casters(light, &windows, triangles, resolution);
+    let (shadowed, occ) = occlusion(
+        light,
+        samples,
+        sample_triangles,
+        &lists,
+        &planes,
+        &pairs,
+        resolution,
+    );
+    let lit = lists
+        .sample_texel
+        .iter()
+        .zip(&shadowed)
+        .map(|(&t, &s)| (t != NOT_LISTED).then_some(!s))
+        .collect();
+    HardShadows {
+        lit,
+        lists,
+        casters,
+        occlusion: occ,
+    }
+}

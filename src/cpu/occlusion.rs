@@ -1,0 +1,79 @@
+//! CPU twin of the conservative rasterization and occlusion passes
+//! (`tile_bin.comp`, `occlusion.comp`): every (caster, face) pair visits
+//! every light texel its projection may touch, and every view sample listed
+//! there is tested against the caster's planes; a hit sets the sample's
+//! shadow bit (paper §3.2–3.3).
+//!
+//! The GPU bins pairs into tiles of [`TILE`]² texels first; the twin
+//! visits the same texels directly, which is what makes it a reference for
+//! the binning.
+
+use glam::Vec3;
+
+use super::casters::{square_overlaps, CasterFace, CasterPlanes};
+use super::light_view::LightView;
+use super::texel_lists::TexelLists;
+
+/// Texels per side of a rasterization tile.
+pub const TILE: u32 = 8;
+
+/// Per-pass counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct OcclusionCounts {
+    /// Texels visited (caster, texel pairs).
+    pub texels_visited: u64,
+    /// View-sample–triangle tests.
+    pub tests: u64,
+}
+
+/// Whether texel (tx, ty) is touched by the pair's projection (conservative).
+pub fn texel_touched(cf: &CasterFace, tx: u32, ty: u32) -> bool {
+    match &cf.edges {
+        Some(e) => square_overlaps(e, tx as f32, ty as f32, tx as f32 + 1.0, ty as f32 + 1.0),
+        None => true,
+    }
+}
+
+/// Runs every pair over its texels and returns per-sample shadow bits.
+#[allow(clippy::too_many_arguments)]
+pub fn occlusion(
+    light: &LightView,
+    samples: &[Option<(Vec3, Vec3)>],
+    sample_triangles: &[u32],
+    lists: &TexelLists,
+    planes: &[Option<CasterPlanes>],
+    pairs: &[CasterFace],
+    resolution: u32,
+) -> (Vec<bool>, OcclusionCounts) {
+    let r2 = resolution * resolution;
+    let origin = light.origin();
+    let mut shadowed = vec![false; samples.len()];
+    let mut counts = OcclusionCounts::default();
+    for cf in pairs {
+        let Some(pl) = planes[cf.triangle as usize] else {
+            continue;
+        };
+        for ty in cf.rect[1]..=cf.rect[3] {
+            for tx in cf.rect[0]..=cf.rect[2] {
+                if !texel_touched(cf, tx, ty) {
+                    continue;
+                }
+                counts.texels_visited += 1;
+                let t = (cf.face * r2 + ty * resolution + tx) as usize;
+                let start = lists.offsets[t] as usize;
+                for &i in &lists.list[start..start + lists.counts[t] as usize] {
+                    let i = i as usize;
+                    if sample_triangles[i] == cf.triangle {
+                        continue;
+                    }
+                    counts.tests += 1;
+                    let (p, _) = samples[i].expect("listed samples exist");
+                    if pl.blocks(p - origin) {
+                        shadowed[i] = true;
+                    }
+                }
+            }
+        }
+    }
+    (shadowed, counts)
+}
