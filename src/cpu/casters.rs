@@ -34,6 +34,9 @@ impl CasterPlanes {
     }
 }
 
+/// Texel-space edge functions (a, b, c) of a projected triangle, inside ≥ 0.
+pub type TexelEdges = [[f32; 3]; 3];
+
 /// One (caster, face) pair to rasterize.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CasterFace {
@@ -43,7 +46,7 @@ pub struct CasterFace {
     pub rect: [u32; 4],
     /// Texel-space edge functions a·x + b·y + c ≥ 0 inside, when the whole
     /// triangle lies in front of the light (`None`: use the rectangle only).
-    pub edges: Option<[[f32; 3]; 3]>,
+    pub edges: Option<TexelEdges>,
 }
 
 /// What the setup decided for the counters.
@@ -60,7 +63,7 @@ pub struct CasterCounts {
 /// against f32 rounding between this pass and the sample projection.
 pub const TEXEL_MARGIN: f32 = 0.01;
 
-/// Planes of triangle `v` (camera-relative); `None` when it cannot cast.
+/// Planes of triangle `v` (camera-relative), or why it cannot cast.
 pub fn caster_planes(light: &LightView, v: [Vec3; 3], closed: bool) -> Result<CasterPlanes, Skip> {
     let o = light.origin();
     let q = [v[0] - o, v[1] - o, v[2] - o];
@@ -136,7 +139,7 @@ pub fn caster_face(
     f: usize,
     v: [Vec3; 3],
     resolution: u32,
-) -> Option<([u32; 4], Option<[[f32; 3]; 3]>)> {
+) -> Option<([u32; 4], Option<TexelEdges>)> {
     if !window.valid {
         return None;
     }

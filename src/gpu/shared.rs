@@ -137,3 +137,76 @@ const _: () = assert!(std::mem::size_of::<ScanPush>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuViewSample>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuTriangle>() == 48);
 const _: () = assert!(std::mem::size_of::<FrameConstants>() == 160);
+
+// ---- Hard shadows (shaders/hard_common.glsl) -------------------------------
+
+/// `NOT_LISTED`: a sample in no light-texel list.
+pub const NOT_LISTED: u32 = u32::MAX;
+/// `TRIANGLE_CLOSED`: [`GpuTriangle::flags`] bit of triangles of closed meshes.
+pub const TRIANGLE_CLOSED: u32 = 4;
+/// Counter slots of the hard-shadow passes (`COUNTER_*`).
+pub mod counter {
+    pub const PAIRS: usize = 0;
+    pub const DEGENERATE: usize = 1;
+    pub const FRONT_FACING_CLOSED: usize = 2;
+    pub const CULLED: usize = 3;
+    pub const RASTERIZED: usize = 4;
+    pub const TEXELS_VISITED: usize = 5;
+    pub const TESTS: usize = 6;
+    pub const COUNT: usize = 8;
+}
+
+/// `HardPush`: push constants of every hard-shadow pass.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct HardPush {
+    /// xyz: light position (point) or 0; w: `LIGHT_KIND_*` bits.
+    pub origin: [f32; 4],
+    /// xyz: a directional light's travel direction.
+    pub direction: [f32; 4],
+    /// View samples, triangles, resolution, face count.
+    pub sizes: [u32; 4],
+    /// Pair capacity, tiles per row, tiles per face, 0.
+    pub more: [u32; 4],
+    /// Directional light face basis (right, up).
+    pub dir_right: [f32; 4],
+    pub dir_up: [f32; 4],
+}
+
+/// `LightFace`: a light face's basis and fitted window.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLightFace {
+    /// xyz: right; w: 1 when the face has samples.
+    pub right: [f32; 4],
+    pub up: [f32; 4],
+    pub forward: [f32; 4],
+    /// x0, y0, sx, sy.
+    pub window: [f32; 4],
+    /// x: depth of the farthest sample.
+    pub far: [f32; 4],
+    pub pad: [[f32; 4]; 3],
+}
+
+/// `CasterPlanes`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuCasterPlanes {
+    pub support: [f32; 4],
+    pub edges: [[f32; 4]; 3],
+}
+
+/// `CasterFace`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuCasterFace {
+    /// triangle, face, rect min (x | y << 16), rect max.
+    pub ids: [u32; 4],
+    /// Texel-space edges (a, b, c, valid).
+    pub edges: [[f32; 4]; 3],
+}
+
+const _: () = assert!(std::mem::size_of::<HardPush>() == 96);
+const _: () = assert!(std::mem::size_of::<GpuLightFace>() == 128);
+const _: () = assert!(std::mem::size_of::<GpuCasterPlanes>() == 64);
+const _: () = assert!(std::mem::size_of::<GpuCasterFace>() == 64);

@@ -1,0 +1,151 @@
+// Shared by the hard-shadow passes (light_fit, texel_count, texel_scatter,
+// caster_setup, tile_bin, occlusion, resolve). Structs are arrays of vec4 /
+// uvec4 so std430 and the #[repr(C)] twins in src/gpu/shared.rs agree.
+// Every function mirrors one in src/cpu/ (light_view.rs, casters.rs,
+// occlusion.rs), in the same f32 arithmetic.
+#ifndef AFS_HARD_COMMON_GLSL
+#define AFS_HARD_COMMON_GLSL
+#include "common.glsl"
+
+#define NOT_LISTED 0xffffffffu
+// Workgroup size of the 1D hard-shadow passes (WG in src/gpu/hard_shadows.rs).
+#define WORKGROUP_1D 64
+#define TILE 8u
+#define TEXEL_MARGIN 0.01
+// GpuTriangle flags bit: the triangle belongs to a closed mesh.
+#define TRIANGLE_CLOSED 4u
+
+// Counter slots (HardCounters buffer).
+#define COUNTER_PAIRS 0
+#define COUNTER_DEGENERATE 1
+#define COUNTER_FRONT_FACING_CLOSED 2
+#define COUNTER_CULLED 3
+#define COUNTER_RASTERIZED 4
+#define COUNTER_TEXELS_VISITED 5
+#define COUNTER_TESTS 6
+#define COUNTER_COUNT 8
+
+// Frame-wide parameters (push constants).
+struct HardPush {
+    vec4 origin;       // xyz: light position (point) or 0 (directional); w: LIGHT_KIND_* bits
+    vec4 direction;    // xyz: directional light's travel direction
+    uvec4 sizes;       // x: view samples, y: triangles, z: resolution, w: face count
+    uvec4 more;        // x: pair capacity, y: tiles per row, z: tiles per face
+    vec4 dir_right;    // directional light's face basis: right
+    vec4 dir_up;       // and up (forward = direction)
+};
+
+// One light face: basis and fitted window (written by light_fit_finalize).
+struct LightFace {
+    vec4 right;   // xyz; w: 1 when the face has samples
+    vec4 up;
+    vec4 forward;
+    vec4 window;  // x0, y0, sx (texels per unit), sy
+    vec4 far;     // x: depth of the farthest sample
+    vec4 pad0;
+    vec4 pad1;
+    vec4 pad2;
+};
+
+// A caster's planes on q = p - origin: blocked <=> dot(support, q) + w < 0
+// and every dot(edge_k, q) + w > 0.
+struct CasterPlanes {
+    vec4 support;
+    vec4 edge0;
+    vec4 edge1;
+    vec4 edge2;
+};
+
+// One (caster, face) pair to rasterize.
+struct CasterFace {
+    uvec4 ids;    // x: triangle, y: face, z: rect min (x | y << 16), w: rect max
+    vec4 e0;      // texel-space edge a, b, c; w: 1 when edges are valid
+    vec4 e1;
+    vec4 e2;
+};
+
+layout(push_constant) uniform Push { HardPush pc; };
+
+uint linear_invocation() {
+    return (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * WORKGROUP_1D + gl_LocalInvocationID.x;
+}
+
+bool is_point_light() { return floatBitsToUint(pc.origin.w) == LIGHT_KIND_POINT; }
+
+// Point-light cube faces: forward, right, up (src/cpu/light_view.rs).
+void point_face_basis(uint f, out vec3 r, out vec3 u, out vec3 w) {
+    w = f == 0u ? vec3(1, 0, 0) : f == 1u ? vec3(-1, 0, 0) : f == 2u ? vec3(0, 1, 0)
+      : f == 3u ? vec3(0, -1, 0) : f == 4u ? vec3(0, 0, 1) : vec3(0, 0, -1);
+    r = f <= 1u ? vec3(0, 0, 1) : vec3(1, 0, 0);
+    u = (f == 2u || f == 3u) ? vec3(0, 0, 1) : vec3(0, 1, 0);
+}
+
+bool faces_light(vec3 p, vec3 n) {
+    return is_point_light() ? dot(n, pc.origin.xyz - p) > 0.0 : dot(n, -pc.direction.xyz) > 0.0;
+}
+
+// The basis of face f (right, up, forward).
+void face_basis(uint f, out vec3 r, out vec3 u, out vec3 w) {
+    if (is_point_light()) {
+        point_face_basis(f, r, u, w);
+    } else {
+        r = pc.dir_right.xyz;
+        u = pc.dir_up.xyz;
+        w = pc.direction.xyz;
+    }
+}
+
+// Face and projected (x, y, depth) of camera-relative p; false at the light.
+bool project_to_face(vec3 p, out uint f, out vec3 xyz) {
+    if (!is_point_light()) {
+        f = 0u;
+        xyz = vec3(dot(p, pc.dir_right.xyz), dot(p, pc.dir_up.xyz), dot(p, pc.direction.xyz));
+        return true;
+    }
+    vec3 d = p - pc.origin.xyz;
+    vec3 a = abs(d);
+    if (a.x >= a.y && a.x >= a.z) {
+        f = d.x >= 0.0 ? 0u : 1u;
+    } else if (a.y >= a.z) {
+        f = d.y >= 0.0 ? 2u : 3u;
+    } else {
+        f = d.z >= 0.0 ? 4u : 5u;
+    }
+    vec3 r, u, w;
+    point_face_basis(f, r, u, w);
+    float z = dot(d, w);
+    if (!(z > 0.0) || isinf(z)) {
+        return false;
+    }
+    xyz = vec3(dot(d, r) / z, dot(d, u) / z, z);
+    return true;
+}
+
+// Order-preserving float <-> uint keys for atomic min/max.
+uint float_key(float f) {
+    uint b = floatBitsToUint(f);
+    return (b & 0x80000000u) != 0u ? ~b : (b | 0x80000000u);
+}
+float key_float(uint k) {
+    return uintBitsToFloat((k & 0x80000000u) != 0u ? (k & 0x7fffffffu) : ~k);
+}
+
+// The texel of a projected point, clamped to the map (cpu::light_view::texel_of).
+uvec2 texel_of(vec4 window, float x, float y, uint resolution) {
+    float m = float(resolution) - 1.0;
+    float tx = clamp(floor((x - window.x) * window.z), 0.0, m);
+    float ty = clamp(floor((y - window.y) * window.w), 0.0, m);
+    return uvec2(tx, ty);
+}
+
+// Conservative overlap of a texel-space square with a triangle's edges
+// (cpu::casters::square_overlaps).
+bool square_overlaps(vec3 e0, vec3 e1, vec3 e2, vec2 lo, vec2 hi) {
+    vec2 c = 0.5 * (lo + hi);
+    vec2 h = 0.5 * (hi - lo) + vec2(TEXEL_MARGIN);
+    return e0.x * c.x + e0.y * c.y + e0.z + abs(e0.x) * h.x + abs(e0.y) * h.y >= 0.0
+        && e1.x * c.x + e1.y * c.y + e1.z + abs(e1.x) * h.x + abs(e1.y) * h.y >= 0.0
+        && e2.x * c.x + e2.y * c.y + e2.z + abs(e2.x) * h.x + abs(e2.y) * h.y >= 0.0;
+}
+
+#endif

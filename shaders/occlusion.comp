@@ -1,0 +1,78 @@
+#version 450
+// Pass 10: one workgroup per tile, one invocation per light texel. For
+// every pair binned to the tile whose projection may touch the texel, every
+// view sample in the texel's list is tested against the caster's planes;
+// a hit sets the sample's shadow flag (the OR of paper §3.3).
+// Twin: cpu::occlusion::occlusion.
+#extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_KHR_shader_subgroup_basic : require
+#include "hard_common.glsl"
+layout(local_size_x = 64) in;
+
+layout(set = 0, binding = 0) readonly buffer Pairs { CasterFace pairs[]; };
+layout(set = 0, binding = 1) readonly buffer Planes { CasterPlanes planes[]; };
+layout(set = 0, binding = 2) readonly buffer TileOffsets { uint tile_offsets[]; };
+layout(set = 0, binding = 3) readonly buffer TilePairs { uint tile_pairs[]; };
+layout(set = 0, binding = 4) readonly buffer Counts { uint counts[]; };
+layout(set = 0, binding = 5) readonly buffer Offsets { uint offsets[]; };
+layout(set = 0, binding = 6) readonly buffer ListSamples { vec4 list_samples[]; };
+layout(set = 0, binding = 7) buffer Shadowed { uint shadowed[]; };
+layout(set = 0, binding = 8) buffer Counters { uint counters[]; };
+
+void main() {
+    uint tile = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint tiles_per_face = pc.more.z;
+    uint res = pc.sizes.z;
+    if (tile >= tiles_per_face * pc.sizes.w) {
+        return;
+    }
+    uint face = tile / tiles_per_face;
+    uint in_face = tile % tiles_per_face;
+    uvec2 tile_xy = uvec2(in_face % pc.more.y, in_face / pc.more.y);
+    uvec2 texel = tile_xy * TILE + uvec2(gl_LocalInvocationID.x % TILE, gl_LocalInvocationID.x / TILE);
+    uint begin = tile_offsets[tile], end = tile_offsets[tile + 1u];
+    uint tests = 0u, visited = 0u;
+    if (texel.x < res && texel.y < res && begin != end) {
+        uint t = face * res * res + texel.y * res + texel.x;
+        uint list_begin = offsets[t];
+        uint list_end = list_begin + counts[t];
+        if (list_begin != list_end) {
+            vec2 lo = vec2(texel), hi = lo + 1.0;
+            for (uint k = begin; k < end; k++) {
+                uint pi = tile_pairs[k];
+                CasterFace cf = pairs[pi];
+                uvec2 rmin = uvec2(cf.ids.z & 0xffffu, cf.ids.z >> 16);
+                uvec2 rmax = uvec2(cf.ids.w & 0xffffu, cf.ids.w >> 16);
+                if (any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax))) {
+                    continue;
+                }
+                if (cf.e0.w != 0.0 && !square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, lo, hi)) {
+                    continue;
+                }
+                visited++;
+                CasterPlanes cp = planes[cf.ids.x];
+                for (uint s = list_begin; s < list_end; s++) {
+                    vec4 qs = list_samples[s];
+                    if (floatBitsToUint(qs.w) == cf.ids.x) {
+                        continue; // never onto a sample of the same triangle
+                    }
+                    tests++;
+                    vec3 q = qs.xyz;
+                    if (dot(cp.support.xyz, q) + cp.support.w < 0.0
+                        && dot(cp.edge0.xyz, q) + cp.edge0.w > 0.0
+                        && dot(cp.edge1.xyz, q) + cp.edge1.w > 0.0
+                        && dot(cp.edge2.xyz, q) + cp.edge2.w > 0.0) {
+                        shadowed[s] = 1u;
+                    }
+                }
+            }
+        }
+    }
+    uint sum_tests = subgroupAdd(tests);
+    uint sum_visited = subgroupAdd(visited);
+    if (subgroupElect() && (sum_tests | sum_visited) != 0u) {
+        atomicAdd(counters[COUNTER_TESTS], sum_tests);
+        atomicAdd(counters[COUNTER_TEXELS_VISITED], sum_visited);
+    }
+}

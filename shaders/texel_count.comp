@@ -1,0 +1,35 @@
+#version 450
+// Pass 3: per view sample facing the light, its light texel; an atomic
+// counter per texel counts the samples and gives each its index in the list.
+// Twin: cpu::texel_lists::build_texel_lists.
+#extension GL_GOOGLE_include_directive : require
+#include "hard_common.glsl"
+layout(local_size_x = WORKGROUP_1D) in;
+
+layout(set = 0, binding = 0) readonly buffer Samples { GpuViewSample samples[]; };
+layout(set = 0, binding = 1) readonly buffer Faces { LightFace faces[]; };
+layout(set = 0, binding = 2) buffer Counts { uint counts[]; };
+layout(set = 0, binding = 3) writeonly buffer SampleTexel { uint sample_texel[]; };
+layout(set = 0, binding = 4) writeonly buffer SampleLocal { uint sample_local[]; };
+
+void main() {
+    uint i = linear_invocation();
+    if (i >= pc.sizes.x) {
+        return;
+    }
+    GpuViewSample s = samples[i];
+    vec3 p = sample_position(s);
+    uint f;
+    vec3 xyz;
+    uint texel = NOT_LISTED;
+    uint local = 0u;
+    if ((sample_flags(s) & VIEW_SAMPLE_VALID) != 0u && faces_light(p, sample_normal(s))
+        && project_to_face(p, f, xyz)) {
+        uint res = pc.sizes.z;
+        uvec2 t = texel_of(faces[f].window, xyz.x, xyz.y, res);
+        texel = f * res * res + t.y * res + t.x;
+        local = atomicAdd(counts[texel], 1u);
+    }
+    sample_texel[i] = texel;
+    sample_local[i] = local;
+}

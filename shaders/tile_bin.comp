@@ -1,0 +1,45 @@
+#version 450
+// Pass 7/9: conservative binning of (caster, face) pairs into tiles of
+// TILE x TILE light texels: every tile the pair's projection may touch.
+// SCATTER = 0 counts pairs per tile; SCATTER = 1 writes them at the
+// scanned offsets. Twin: cpu::occlusion (which visits the texels directly).
+#extension GL_GOOGLE_include_directive : require
+#include "hard_common.glsl"
+layout(local_size_x = WORKGROUP_1D) in;
+layout(constant_id = 1) const uint SCATTER = 0u;
+
+layout(set = 0, binding = 0) readonly buffer Pairs { CasterFace pairs[]; };
+layout(set = 0, binding = 1) readonly buffer Counters { uint counters[]; };
+layout(set = 0, binding = 2) buffer TileCounts { uint tile_counts[]; }; // counts, or cursors when scattering
+layout(set = 0, binding = 3) readonly buffer TileOffsets { uint tile_offsets[]; };
+layout(set = 0, binding = 4) writeonly buffer TilePairs { uint tile_pairs[]; };
+
+void main() {
+    uint i = linear_invocation();
+    if (i >= min(counters[COUNTER_PAIRS], pc.more.x)) {
+        return;
+    }
+    CasterFace cf = pairs[i];
+    uvec2 rmin = uvec2(cf.ids.z & 0xffffu, cf.ids.z >> 16);
+    uvec2 rmax = uvec2(cf.ids.w & 0xffffu, cf.ids.w >> 16);
+    uvec2 t0 = rmin / TILE, t1 = rmax / TILE;
+    bool edges = cf.e0.w != 0.0;
+    uint base = cf.ids.y * pc.more.z;
+    for (uint ty = t0.y; ty <= t1.y; ty++) {
+        for (uint tx = t0.x; tx <= t1.x; tx++) {
+            // The part of the tile inside the rectangle.
+            vec2 lo = vec2(max(uvec2(tx, ty) * TILE, rmin));
+            vec2 hi = vec2(min(uvec2(tx, ty) * TILE + TILE - 1u, rmax) + 1u);
+            if (edges && !square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, lo, hi)) {
+                continue;
+            }
+            uint tile = base + ty * pc.more.y + tx;
+            if (SCATTER == 0u) {
+                atomicAdd(tile_counts[tile], 1u);
+            } else {
+                uint slot = tile_offsets[tile] + atomicAdd(tile_counts[tile], 1u);
+                tile_pairs[slot] = i;
+            }
+        }
+    }
+}

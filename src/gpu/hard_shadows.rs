@@ -1,0 +1,404 @@
+//! Alias-free hard shadows on Vulkan compute (paper §3), for point lights
+//! (six cube faces, empty ones skipped) and directional lights (one
+//! orthographic face). The passes, in order:
+//!
+//! 1. `light_fit` + `light_fit_finalize`: each face's window fitted to the
+//!    view samples that face the light, far plane at the farthest one;
+//! 2. `texel_count`, scan, `texel_scatter`: per-light-texel lists of view samples;
+//! 3. `caster_setup`: casting triangles, their planes and conservative
+//!    per-face rectangles and edges;
+//! 4. `tile_bin` (count), scan, `tile_bin` (scatter): (caster, face) pairs per tile;
+//! 5. `occlusion`: every listed sample of every touched texel against its tile's casters;
+//! 6. `resolve`: per view sample lit / evaluated.
+//!
+//! Each pass has a CPU twin in [`crate::cpu`]; the whole chain's twin is
+//! [`crate::cpu::hard_shadows::hard_shadows`].
+
+use crate::cpu::light_view::LightView;
+use crate::gpu::scan::ScanPass;
+use crate::gpu::shaders;
+use crate::gpu::shared::{
+    counter, GpuTriangle, GpuViewSample, HardPush, LIGHT_KIND_DIRECTIONAL, LIGHT_KIND_POINT,
+};
+use crate::vulkan::{
+    Barrier, Binding, Buffer, BufferDesc, CommandRecorder, ComputePipeline, ComputePipelineDesc,
+    DescriptorKind, GpuContext, PassTiming, Profiler,
+};
+use crate::{Error, Result};
+
+/// Workgroup size of the 1D passes.
+const WG: u32 = 64;
+/// Tile side in texels (`TILE` in hard_common.glsl).
+pub const TILE: u32 = 8;
+
+/// What one hard-shadow run returns.
+#[derive(Clone, Debug)]
+pub struct HardShadowOutput {
+    /// Per view sample: `None` when not evaluated (invalid, or facing away
+    /// from the light), else whether it is lit.
+    pub lit: Vec<Option<bool>>,
+    /// The pass counters (indices in [`counter`]).
+    pub counters: [u32; counter::COUNT],
+    /// Per light texel (face·R² + row·R + column): list length.
+    pub list_lengths: Vec<u32>,
+    /// GPU milliseconds per pass.
+    pub timings: Vec<PassTiming>,
+    /// Bytes of GPU buffers this run allocated.
+    pub buffer_bytes: u64,
+}
+
+/// The compiled pipelines of the hard-shadow passes; create once, run per frame.
+pub struct HardShadowPass {
+    light_fit: ComputePipeline,
+    light_fit_finalize: ComputePipeline,
+    texel_count: ComputePipeline,
+    texel_scatter: ComputePipeline,
+    caster_setup: ComputePipeline,
+    tile_count: ComputePipeline,
+    tile_scatter: ComputePipeline,
+    occlusion: ComputePipeline,
+    resolve: ComputePipeline,
+    scan: ScanPass,
+}
+
+fn groups(n: u32) -> [u32; 3] {
+    let g = n.div_ceil(WG);
+    if g <= 65535 {
+        [g, 1, 1]
+    } else {
+        [65535, g.div_ceil(65535), 1]
+    }
+}
+
+fn groups_2d(g: u32) -> [u32; 3] {
+    if g <= 65535 {
+        [g, 1, 1]
+    } else {
+        [65535, g.div_ceil(65535), 1]
+    }
+}
+
+impl HardShadowPass {
+    /// Builds every pipeline.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let sb = DescriptorKind::StorageBuffer;
+        let push = std::mem::size_of::<HardPush>() as u32;
+        let make = |name: &str, spirv: &[u32], n: usize, spec: &[(u32, u32)]| {
+            ctx.create_compute_pipeline(&ComputePipelineDesc {
+                name,
+                spirv,
+                bindings: &vec![sb; n],
+                push_constant_bytes: push,
+                specialization: spec,
+            })
+        };
+        let wg: [(u32, u32); 0] = [];
+        Ok(HardShadowPass {
+            light_fit: make("light_fit", shaders::LIGHT_FIT, 2, &wg)?,
+            light_fit_finalize: make("light_fit_finalize", shaders::LIGHT_FIT_FINALIZE, 2, &[])?,
+            texel_count: make("texel_count", shaders::TEXEL_COUNT, 5, &wg)?,
+            texel_scatter: make("texel_scatter", shaders::TEXEL_SCATTER, 5, &wg)?,
+            caster_setup: make("caster_setup", shaders::CASTER_SETUP, 5, &wg)?,
+            tile_count: make("tile_bin_count", shaders::TILE_BIN, 5, &[(1, 0)])?,
+            tile_scatter: make("tile_bin_scatter", shaders::TILE_BIN, 5, &[(1, 1)])?,
+            occlusion: make("occlusion", shaders::OCCLUSION, 9, &[])?,
+            resolve: make("resolve", shaders::RESOLVE, 4, &wg)?,
+            scan: ScanPass::new(ctx)?,
+        })
+    }
+
+    /// Computes hard-shadow visibility of `view_samples` (camera-relative)
+    /// from `light` with the scene's `triangles` over `resolution`² light
+    /// texels per face.
+    pub fn run(
+        &mut self,
+        ctx: &GpuContext,
+        view_samples: &[GpuViewSample],
+        triangles: &[GpuTriangle],
+        light: &LightView,
+        resolution: u32,
+    ) -> Result<HardShadowOutput> {
+        let faces = light.face_count() as u32;
+        if resolution == 0 || resolution > 16384 {
+            return Err(Error::InvalidInput(format!(
+                "light_texels must be in 1..=16384, got {resolution}"
+            )));
+        }
+        let texels = faces as u64 * resolution as u64 * resolution as u64;
+        if texels + 1 > self.scan.max_len() as u64 {
+            return Err(Error::InvalidInput(format!(
+                "{faces} light face(s) of {resolution}² texels need {texels} list counters; this device scans at most {} (lower light_texels)",
+                self.scan.max_len()
+            )));
+        }
+        let n = u32::try_from(view_samples.len())
+            .map_err(|_| Error::InvalidInput("too many view samples".into()))?;
+        let nt = u32::try_from(triangles.len())
+            .map_err(|_| Error::InvalidInput("too many triangles".into()))?;
+        let tiles_per_row = resolution.div_ceil(TILE);
+        let tiles_per_face = tiles_per_row * tiles_per_row;
+        let tiles = faces * tiles_per_face;
+        let pair_capacity = nt.saturating_mul(faces);
+        let (origin, kind, direction, (r, u)) = match light {
+            LightView::Point { position } => (
+                *position,
+                LIGHT_KIND_POINT,
+                glam::Vec3::ZERO,
+                (glam::Vec3::ZERO, glam::Vec3::ZERO),
+            ),
+            LightView::Directional { direction } => {
+                let (r, u, _) = light.basis(0);
+                (glam::Vec3::ZERO, LIGHT_KIND_DIRECTIONAL, *direction, (r, u))
+            }
+        };
+        let push = HardPush {
+            origin: [origin.x, origin.y, origin.z, f32::from_bits(kind)],
+            direction: [direction.x, direction.y, direction.z, 0.0],
+            sizes: [n, nt, resolution, faces],
+            more: [pair_capacity, tiles_per_row, tiles_per_face, 0],
+            dir_right: [r.x, r.y, r.z, 0.0],
+            dir_up: [u.x, u.y, u.z, 0.0],
+        };
+        let pc = bytemuck::bytes_of(&push);
+
+        let mut bytes = 0u64;
+        let mut buffer = |name: &str, size: u64| -> Result<Buffer> {
+            let size = size.max(16);
+            bytes += size;
+            ctx.create_buffer(BufferDesc::storage(name, size))
+        };
+        let samples_buf = buffer("view_samples", 32 * n as u64)?;
+        let triangles_buf = buffer("triangles", 48 * nt as u64)?;
+        let fit = buffer("light_fit_keys", 4 * 8 * 6)?;
+        let faces_buf = buffer("light_faces", 128 * 6)?;
+        let counts = buffer("texel_counts", 4 * texels)?;
+        let offsets = buffer("texel_offsets", 4 * (texels + 1))?;
+        let sample_texel = buffer("sample_texel", 4 * n as u64)?;
+        let sample_slot = buffer("sample_slot", 4 * n as u64)?;
+        let list_samples = buffer("light_texel_lists", 16 * n as u64)?;
+        let planes = buffer("caster_planes", 64 * nt as u64)?;
+        let pairs = buffer("caster_faces", 64 * pair_capacity as u64)?;
+        let counters = buffer("counters", 4 * counter::COUNT as u64)?;
+        let tile_counts = buffer("tile_counts", 4 * tiles as u64)?;
+        let tile_offsets = buffer("tile_offsets", 4 * (tiles as u64 + 1))?;
+        let shadowed = buffer("shadowed", 4 * n as u64)?;
+        let result = buffer("result", 4 * n as u64)?;
+
+        if n > 0 {
+            ctx.upload_staged(&samples_buf, 0, view_samples)?;
+        }
+        if nt > 0 {
+            ctx.upload_staged(&triangles_buf, 0, triangles)?;
+        }
+        let mut fit_init = [0u32; 48];
+        for f in 0..6 {
+            fit_init[f * 8] = u32::MAX;
+            fit_init[f * 8 + 1] = u32::MAX;
+        }
+        ctx.upload_staged(&fit, 0, &fit_init)?;
+
+        // ---- Submission 1: lists and caster setup, tile counts.
+        let mut prof1 = Profiler::new(ctx, 16)?;
+        let mut rec = ctx.begin()?;
+        rec.fill_buffer(counts.whole(), 0)?;
+        rec.fill_buffer(counters.whole(), 0)?;
+        rec.fill_buffer(tile_counts.whole(), 0)?;
+        rec.barrier(Barrier::TransferToCompute);
+        timed(&mut prof1, &mut rec, "light_fit", |rec| {
+            rec.dispatch(&self.light_fit, &[s(&samples_buf), s(&fit)], pc, groups(n))?;
+            rec.barrier(Barrier::ComputeToCompute);
+            rec.dispatch(
+                &self.light_fit_finalize,
+                &[s(&fit), s(&faces_buf)],
+                pc,
+                [1, 1, 1],
+            )?;
+            rec.barrier(Barrier::ComputeToCompute);
+            Ok(())
+        })?;
+        timed(&mut prof1, &mut rec, "texel_count", |rec| {
+            rec.dispatch(
+                &self.texel_count,
+                &[
+                    s(&samples_buf),
+                    s(&faces_buf),
+                    s(&counts),
+                    s(&sample_texel),
+                    s(&sample_slot),
+                ],
+                pc,
+                groups(n),
+            )
+        })?;
+        let scan = &mut self.scan;
+        timed(&mut prof1, &mut rec, "texel_scan", |rec| {
+            scan.record(rec, counts.whole(), offsets.whole(), texels as u32)?;
+            rec.barrier(Barrier::ComputeToCompute);
+            Ok(())
+        })?;
+        timed(&mut prof1, &mut rec, "texel_scatter", |rec| {
+            rec.dispatch(
+                &self.texel_scatter,
+                &[
+                    s(&samples_buf),
+                    s(&offsets),
+                    s(&sample_texel),
+                    s(&sample_slot),
+                    s(&list_samples),
+                ],
+                pc,
+                groups(n),
+            )
+        })?;
+        timed(&mut prof1, &mut rec, "caster_setup", |rec| {
+            rec.dispatch(
+                &self.caster_setup,
+                &[
+                    s(&triangles_buf),
+                    s(&faces_buf),
+                    s(&planes),
+                    s(&pairs),
+                    s(&counters),
+                ],
+                pc,
+                groups(nt),
+            )?;
+            rec.barrier(Barrier::ComputeToCompute);
+            Ok(())
+        })?;
+        timed(&mut prof1, &mut rec, "tile_bin_count", |rec| {
+            rec.dispatch(
+                &self.tile_count,
+                &[
+                    s(&pairs),
+                    s(&counters),
+                    s(&tile_counts),
+                    s(&tile_offsets),
+                    s(&tile_offsets),
+                ],
+                pc,
+                groups(pair_capacity),
+            )
+        })?;
+        timed(&mut prof1, &mut rec, "tile_scan", |rec| {
+            scan.record(rec, tile_counts.whole(), tile_offsets.whole(), tiles)?;
+            rec.barrier(Barrier::ComputeToHost);
+            Ok(())
+        })?;
+        ctx.submit_and_wait(rec)?;
+        let pairs_total: Vec<u32> = ctx.read_buffer_staged(&tile_offsets, 4 * tiles as u64, 1)?;
+        let pairs_total = pairs_total[0];
+
+        // ---- Submission 2: tile lists, occlusion, resolve. The pair total
+        // is read back first so that the tile-pair array is sized exactly.
+        let tile_pairs = buffer("tile_pairs", 4 * pairs_total as u64)?;
+        let mut prof2 = Profiler::new(ctx, 8)?;
+        let mut rec = ctx.begin()?;
+        rec.fill_buffer(tile_counts.whole(), 0)?;
+        rec.fill_buffer(shadowed.whole(), 0)?;
+        rec.barrier(Barrier::TransferToCompute);
+        timed(&mut prof2, &mut rec, "tile_bin_scatter", |rec| {
+            rec.dispatch(
+                &self.tile_scatter,
+                &[
+                    s(&pairs),
+                    s(&counters),
+                    s(&tile_counts),
+                    s(&tile_offsets),
+                    s(&tile_pairs),
+                ],
+                pc,
+                groups(pair_capacity),
+            )?;
+            rec.barrier(Barrier::ComputeToCompute);
+            Ok(())
+        })?;
+        timed(&mut prof2, &mut rec, "occlusion", |rec| {
+            rec.dispatch(
+                &self.occlusion,
+                &[
+                    s(&pairs),
+                    s(&planes),
+                    s(&tile_offsets),
+                    s(&tile_pairs),
+                    s(&counts),
+                    s(&offsets),
+                    s(&list_samples),
+                    s(&shadowed),
+                    s(&counters),
+                ],
+                pc,
+                groups_2d(tiles),
+            )?;
+            rec.barrier(Barrier::ComputeToCompute);
+            Ok(())
+        })?;
+        timed(&mut prof2, &mut rec, "resolve", |rec| {
+            rec.dispatch(
+                &self.resolve,
+                &[s(&sample_texel), s(&sample_slot), s(&shadowed), s(&result)],
+                pc,
+                groups(n),
+            )?;
+            rec.barrier(Barrier::ComputeToHost);
+            Ok(())
+        })?;
+        ctx.submit_and_wait(rec)?;
+        ctx.check_validation()?;
+
+        let result: Vec<u32> = ctx.read_buffer_staged(&result, 0, n as usize)?;
+        let c: Vec<u32> = ctx.read_buffer_staged(&counters, 0, counter::COUNT)?;
+        let list_lengths: Vec<u32> = ctx.read_buffer_staged(&counts, 0, texels as usize)?;
+        let mut timings = prof1.results()?;
+        timings.extend(prof2.results()?);
+        let mut counters_out = [0u32; counter::COUNT];
+        counters_out.copy_from_slice(&c);
+        Ok(HardShadowOutput {
+            lit: result
+                .iter()
+                .map(|&r| (r & 2 != 0).then_some(r & 1 != 0))
+                .collect(),
+            counters: counters_out,
+            list_lengths,
+            timings,
+            buffer_bytes: bytes,
+        })
+    }
+}
+
+fn s(b: &Buffer) -> Binding<'_> {
+    Binding::storage(b)
+}
+
+/// Records `f` between the profiler's timestamps for `name`.
+fn timed(
+    prof: &mut Profiler,
+    rec: &mut CommandRecorder,
+    name: &str,
+    f: impl FnOnce(&mut CommandRecorder) -> Result<()>,
+) -> Result<()> {
+    let scope = prof.begin(rec, name)?;
+    f(rec)?;
+    prof.end(rec, scope);
+    Ok(())
+}
+
+/// Camera-relative GPU view samples and triangles from CPU data.
+pub fn gpu_inputs(
+    samples: &[Option<(glam::Vec3, glam::Vec3, u32)>],
+    triangles: &[([glam::Vec3; 3], bool)],
+) -> (Vec<GpuViewSample>, Vec<GpuTriangle>) {
+    use crate::gpu::shared::{TRIANGLE_CLOSED, VIEW_SAMPLE_VALID};
+    let vs = samples
+        .iter()
+        .map(|s| match s {
+            Some((p, n, t)) => GpuViewSample::new(*p, *t, *n, VIEW_SAMPLE_VALID),
+            None => GpuViewSample::default(),
+        })
+        .collect();
+    let ts = triangles
+        .iter()
+        .map(|(v, closed)| GpuTriangle::new(*v, if *closed { TRIANGLE_CLOSED } else { 0 }, 0))
+        .collect();
+    (vs, ts)
+}
