@@ -11,6 +11,13 @@
 // Workgroup size of the 1D hard-shadow passes (WG in src/gpu/hard_shadows.rs).
 #define WORKGROUP_1D 64
 #define TILE 8u
+// Occlusion work units: one workgroup per (tile, chunk of OCC_PAIR_CHUNK
+// pairs, chunk of OCC_SAMPLE_CHUNK list entries). lavapipe (llvmpipe) ends
+// every loop of an invocation silently once all its loops together have run
+// 65535 iterations (LP_MAX_TGSI_LOOP_ITERATIONS), so each invocation's work
+// is bounded: at most OCC_PAIR_CHUNK * (OCC_SAMPLE_CHUNK + 1) iterations.
+#define OCC_PAIR_CHUNK 64u
+#define OCC_SAMPLE_CHUNK 256u
 #define TEXEL_MARGIN 0.01
 // GpuTriangle flags bit: the triangle belongs to a closed mesh.
 #define TRIANGLE_CLOSED 4u
@@ -30,7 +37,7 @@ struct HardPush {
     vec4 origin;       // xyz: light position (point) or 0 (directional); w: LIGHT_KIND_* bits
     vec4 direction;    // xyz: directional light's travel direction
     uvec4 sizes;       // x: view samples, y: triangles, z: resolution, w: face count
-    uvec4 more;        // x: pair capacity, y: tiles per row, z: tiles per face
+    uvec4 more;        // x: pair capacity, y: tiles per row, z: tiles per face, w: occlusion units
     vec4 dir_right;    // directional light's face basis: right
     vec4 dir_up;       // and up (forward = direction)
 };

@@ -1,8 +1,11 @@
 #version 450
-// Pass 10: one workgroup per tile, one invocation per light texel. For
-// every pair binned to the tile whose projection may touch the texel, every
-// view sample in the texel's list is tested against the caster's planes;
-// a hit sets the sample's shadow flag (the OR of paper §3.3).
+// Pass 10: one workgroup per work unit (a tile, a chunk of OCC_PAIR_CHUNK
+// of its pairs and a chunk of OCC_SAMPLE_CHUNK list entries; see tile_units),
+// one invocation per light texel of the tile. For every pair of the chunk
+// whose projection may touch the texel, every view sample of the texel's
+// list chunk is tested against the caster's planes; a hit sets the sample's
+// shadow flag (the OR of paper §3.3). The chunks bound every invocation's
+// loop iterations below lavapipe's per-invocation limit (hard_common.glsl).
 // Twin: cpu::occlusion::occlusion.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
@@ -19,24 +22,43 @@ layout(set = 0, binding = 5) readonly buffer Offsets { uint offsets[]; };
 layout(set = 0, binding = 6) readonly buffer ListSamples { vec4 list_samples[]; };
 layout(set = 0, binding = 7) buffer Shadowed { uint shadowed[]; };
 layout(set = 0, binding = 8) buffer Counters { uint counters[]; };
+layout(set = 0, binding = 9) readonly buffer UnitOffsets { uint unit_offsets[]; };
 
 void main() {
-    uint tile = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint unit = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     uint tiles_per_face = pc.more.z;
     uint res = pc.sizes.z;
-    if (tile >= tiles_per_face * pc.sizes.w) {
+    if (unit >= pc.more.w) {
         return;
     }
+    // The tile: the last one whose first unit is at most `unit` (the
+    // offsets hold tiles + 1 non-decreasing values).
+    uint lo_t = 0u, hi_t = tiles_per_face * pc.sizes.w;
+    while (hi_t - lo_t > 1u) {
+        uint mid = (lo_t + hi_t) / 2u;
+        if (unit_offsets[mid] <= unit) {
+            lo_t = mid;
+        } else {
+            hi_t = mid;
+        }
+    }
+    uint tile = lo_t;
     uint face = tile / tiles_per_face;
     uint in_face = tile % tiles_per_face;
     uvec2 tile_xy = uvec2(in_face % pc.more.y, in_face / pc.more.y);
     uvec2 texel = tile_xy * TILE + uvec2(gl_LocalInvocationID.x % TILE, gl_LocalInvocationID.x / TILE);
     uint begin = tile_offsets[tile], end = tile_offsets[tile + 1u];
+    uint pair_chunks = (end - begin + OCC_PAIR_CHUNK - 1u) / OCC_PAIR_CHUNK;
+    uint local_unit = unit - unit_offsets[tile];
+    uint sample_chunk = local_unit / pair_chunks;
+    begin += (local_unit % pair_chunks) * OCC_PAIR_CHUNK;
+    end = min(end, begin + OCC_PAIR_CHUNK);
     uint tests = 0u, visited = 0u;
     if (texel.x < res && texel.y < res && begin != end) {
         uint t = face * res * res + texel.y * res + texel.x;
-        uint list_begin = offsets[t];
-        uint list_end = list_begin + counts[t];
+        uint count = counts[t];
+        uint list_begin = offsets[t] + min(count, sample_chunk * OCC_SAMPLE_CHUNK);
+        uint list_end = offsets[t] + min(count, (sample_chunk + 1u) * OCC_SAMPLE_CHUNK);
         if (list_begin != list_end) {
             vec2 lo = vec2(texel), hi = lo + 1.0;
             for (uint k = begin; k < end; k++) {
@@ -50,7 +72,9 @@ void main() {
                 if (cf.e0.w != 0.0 && !square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, lo, hi)) {
                     continue;
                 }
-                visited++;
+                if (sample_chunk == 0u) {
+                    visited++; // once per (pair, texel), not per list chunk
+                }
                 CasterPlanes cp = planes[cf.ids.x];
                 for (uint s = list_begin; s < list_end; s++) {
                     vec4 qs = list_samples[s];

@@ -11,6 +11,7 @@ layout(set = 0, binding = 1) readonly buffer Faces { LightFace faces[]; };
 layout(set = 0, binding = 2) buffer Counts { uint counts[]; };
 layout(set = 0, binding = 3) writeonly buffer SampleTexel { uint sample_texel[]; };
 layout(set = 0, binding = 4) writeonly buffer SampleLocal { uint sample_local[]; };
+layout(set = 0, binding = 5) buffer TileMaxLen { uint tile_max_len[]; }; // longest list per tile
 
 void main() {
     uint i = linear_invocation();
@@ -29,6 +30,8 @@ void main() {
         uvec2 t = texel_of(faces[f].window, xyz.x, xyz.y, res);
         texel = f * res * res + t.y * res + t.x;
         local = atomicAdd(counts[texel], 1u);
+        uvec2 tt = t / TILE;
+        atomicMax(tile_max_len[f * pc.more.z + tt.y * pc.more.y + tt.x], local + 1u);
     }
     sample_texel[i] = texel;
     sample_local[i] = local;

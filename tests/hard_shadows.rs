@@ -116,7 +116,6 @@ fn cpu_twins_match_the_oracle() {
 }
 
 #[test]
-#[ignore = "work in progress: builtin:hairball at 16² light texels leaves ~1000 samples lit that the oracle and the CPU twin shadow (every other scene and resolution here agrees exactly)"]
 fn gpu_matches_the_oracle_and_the_twins() {
     let ctx = GpuContext::new(&ContextOptions::validated()).unwrap();
     let mut pass = HardShadowPass::new(&ctx).unwrap();

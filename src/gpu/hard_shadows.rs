@@ -8,6 +8,9 @@
 //! 3. `caster_setup`: casting triangles, their planes and conservative
 //!    per-face rectangles and edges;
 //! 4. `tile_bin` (count), scan, `tile_bin` (scatter): (caster, face) pairs per tile;
+//!    `tile_units`, scan: per tile, its occlusion work units (chunks of pairs
+//!    times chunks of its longest list, so that no invocation loops past
+//!    lavapipe's limit of 65535 loop iterations per invocation);
 //! 5. `occlusion`: every listed sample of every touched texel against its tile's casters;
 //! 6. `resolve`: per view sample lit / evaluated.
 //!
@@ -56,6 +59,7 @@ pub struct HardShadowPass {
     caster_setup: ComputePipeline,
     tile_count: ComputePipeline,
     tile_scatter: ComputePipeline,
+    tile_units: ComputePipeline,
     occlusion: ComputePipeline,
     resolve: ComputePipeline,
     scan: ScanPass,
@@ -96,12 +100,13 @@ impl HardShadowPass {
         Ok(HardShadowPass {
             light_fit: make("light_fit", shaders::LIGHT_FIT, 2, &wg)?,
             light_fit_finalize: make("light_fit_finalize", shaders::LIGHT_FIT_FINALIZE, 2, &[])?,
-            texel_count: make("texel_count", shaders::TEXEL_COUNT, 5, &wg)?,
+            texel_count: make("texel_count", shaders::TEXEL_COUNT, 6, &wg)?,
             texel_scatter: make("texel_scatter", shaders::TEXEL_SCATTER, 5, &wg)?,
             caster_setup: make("caster_setup", shaders::CASTER_SETUP, 5, &wg)?,
             tile_count: make("tile_bin_count", shaders::TILE_BIN, 5, &[(1, 0)])?,
             tile_scatter: make("tile_bin_scatter", shaders::TILE_BIN, 5, &[(1, 1)])?,
-            occlusion: make("occlusion", shaders::OCCLUSION, 9, &[])?,
+            tile_units: make("tile_units", shaders::TILE_UNITS, 3, &wg)?,
+            occlusion: make("occlusion", shaders::OCCLUSION, 10, &[])?,
             resolve: make("resolve", shaders::RESOLVE, 4, &wg)?,
             scan: ScanPass::new(ctx)?,
         })
@@ -181,6 +186,9 @@ impl HardShadowPass {
         let counters = buffer("counters", 4 * counter::COUNT as u64)?;
         let tile_counts = buffer("tile_counts", 4 * tiles as u64)?;
         let tile_offsets = buffer("tile_offsets", 4 * (tiles as u64 + 1))?;
+        let tile_max_len = buffer("tile_max_len", 4 * tiles as u64)?;
+        let tile_units = buffer("tile_units", 4 * tiles as u64)?;
+        let unit_offsets = buffer("unit_offsets", 4 * (tiles as u64 + 1))?;
         let shadowed = buffer("shadowed", 4 * n as u64)?;
         let result = buffer("result", 4 * n as u64)?;
 
@@ -203,6 +211,7 @@ impl HardShadowPass {
         rec.fill_buffer(counts.whole(), 0)?;
         rec.fill_buffer(counters.whole(), 0)?;
         rec.fill_buffer(tile_counts.whole(), 0)?;
+        rec.fill_buffer(tile_max_len.whole(), 0)?;
         rec.barrier(Barrier::TransferToCompute);
         timed(&mut prof1, &mut rec, "light_fit", |rec| {
             rec.dispatch(&self.light_fit, &[s(&samples_buf), s(&fit)], pc, groups(n))?;
@@ -225,6 +234,7 @@ impl HardShadowPass {
                     s(&counts),
                     s(&sample_texel),
                     s(&sample_slot),
+                    s(&tile_max_len),
                 ],
                 pc,
                 groups(n),
@@ -278,16 +288,31 @@ impl HardShadowPass {
                 ],
                 pc,
                 groups(pair_capacity),
+            )?;
+            rec.barrier(Barrier::ComputeToCompute);
+            rec.dispatch(
+                &self.tile_units,
+                &[s(&tile_counts), s(&tile_max_len), s(&tile_units)],
+                pc,
+                groups(tiles),
             )
         })?;
         timed(&mut prof1, &mut rec, "tile_scan", |rec| {
             scan.record(rec, tile_counts.whole(), tile_offsets.whole(), tiles)?;
+            scan.record(rec, tile_units.whole(), unit_offsets.whole(), tiles)?;
             rec.barrier(Barrier::ComputeToHost);
             Ok(())
         })?;
         ctx.submit_and_wait(rec)?;
         let pairs_total: Vec<u32> = ctx.read_buffer_staged(&tile_offsets, 4 * tiles as u64, 1)?;
         let pairs_total = pairs_total[0];
+        let units: Vec<u32> = ctx.read_buffer_staged(&unit_offsets, 4 * tiles as u64, 1)?;
+        let units = units[0];
+        let push2 = HardPush {
+            more: [pair_capacity, tiles_per_row, tiles_per_face, units],
+            ..push
+        };
+        let pc2 = bytemuck::bytes_of(&push2);
 
         // ---- Submission 2: tile lists, occlusion, resolve. The pair total
         // is read back first so that the tile-pair array is sized exactly.
@@ -326,9 +351,10 @@ impl HardShadowPass {
                     s(&list_samples),
                     s(&shadowed),
                     s(&counters),
+                    s(&unit_offsets),
                 ],
-                pc,
-                groups_2d(tiles),
+                pc2,
+                groups_2d(units.max(1)),
             )?;
             rec.barrier(Barrier::ComputeToCompute);
             Ok(())

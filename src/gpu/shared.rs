@@ -166,7 +166,8 @@ pub struct HardPush {
     pub direction: [f32; 4],
     /// View samples, triangles, resolution, face count.
     pub sizes: [u32; 4],
-    /// Pair capacity, tiles per row, tiles per face, 0.
+    /// Pair capacity, tiles per row, tiles per face, occlusion work units
+    /// (0 before they are known).
     pub more: [u32; 4],
     /// Directional light face basis (right, up).
     pub dir_right: [f32; 4],
