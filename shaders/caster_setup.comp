@@ -48,15 +48,18 @@ void main() {
     GpuTriangle t = triangles[i];
     bool closed = (triangle_flags(t) & TRIANGLE_CLOSED) != 0u;
     vec3 o = pc.origin.xyz;
-    vec3 q0 = t.v0_flags.xyz - o, q1 = t.v1_mesh.xyz - o, q2 = t.v2_pad.xyz - o;
-    vec3 n = cross(q1 - q0, q2 - q0);
+    // Camera-relative vertices; every normal is a cross product with one
+    // short edge vector so small triangles far from the light keep
+    // f32-accurate planes (cpu::casters::caster_planes).
+    vec3 v[3] = vec3[3](t.v0_flags.xyz, t.v1_mesh.xyz, t.v2_pad.xyz);
+    vec3 n = cross(v[1] - v[0], v[2] - v[0]);
     CasterPlanes cp;
     cp.support = vec4(0.0);
     cp.edge0 = vec4(0.0);
     cp.edge1 = vec4(0.0);
     cp.edge2 = vec4(0.0);
     bool point = is_point_light();
-    float s_light = point ? -dot(n, q0) : dot(n, -pc.direction.xyz);
+    float s_light = point ? dot(n, o - v[0]) : dot(n, -pc.direction.xyz);
     if (any(isnan(n)) || any(isinf(n)) || n == vec3(0.0) || s_light == 0.0 || isnan(s_light) || isinf(s_light)) {
         planes[i] = cp;
         atomicAdd(counters[COUNTER_DEGENERATE], 1u);
@@ -68,21 +71,22 @@ void main() {
         return;
     }
     vec3 ns = n * sign(s_light);
-    cp.support = vec4(ns, -dot(ns, q0));
-    vec3 q[3] = vec3[3](q0, q1, q2);
+    cp.support = vec4(ns, -dot(ns, v[0]));
     vec4 e[3];
     for (int k = 0; k < 3; k++) {
-        vec3 a = q[k], b = q[(k + 1) % 3], c = q[(k + 2) % 3];
+        vec3 a = v[k], b = v[(k + 1) % 3], c = v[(k + 2) % 3];
         vec3 m;
-        float w;
+        float w, inside;
         if (point) {
-            m = cross(a, b);
+            m = cross(a - o, b - a);
             w = 0.0;
+            inside = dot(m, c - o);
         } else {
             m = cross(b - a, pc.direction.xyz);
             w = -dot(m, a);
+            inside = dot(m, c - a);
         }
-        if (dot(m, c) + w < 0.0) {
+        if (inside < 0.0) {
             m = -m;
             w = -w;
         }
@@ -91,6 +95,7 @@ void main() {
     cp.edge0 = e[0];
     cp.edge1 = e[1];
     cp.edge2 = e[2];
+    vec3 q[3] = vec3[3](v[0] - o, v[1] - o, v[2] - o);
 
     uint res = pc.sizes.z;
     float max_t = float(res) - 1.0;

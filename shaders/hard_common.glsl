@@ -54,8 +54,8 @@ struct LightFace {
     vec4 pad2;
 };
 
-// A caster's planes on q = p - origin: blocked <=> dot(support, q) + w < 0
-// and every dot(edge_k, q) + w > 0.
+// A caster's planes: blocked <=> dot(support, p) + w < 0 on the camera-relative p
+// and every dot(edge_k, q) + w > 0 on q = p - origin.
 struct CasterPlanes {
     vec4 support;
     vec4 edge0;

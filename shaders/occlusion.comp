@@ -82,8 +82,10 @@ void main() {
                         continue; // never onto a sample of the same triangle
                     }
                     tests++;
-                    vec3 q = qs.xyz;
-                    if (dot(cp.support.xyz, q) + cp.support.w < 0.0
+                    // Support plane on the camera-relative position, edge
+                    // planes on the light-relative one (cpu::casters::CasterPlanes::blocks).
+                    vec3 q = qs.xyz - pc.origin.xyz;
+                    if (dot(cp.support.xyz, qs.xyz) + cp.support.w < 0.0
                         && dot(cp.edge0.xyz, q) + cp.edge0.w > 0.0
                         && dot(cp.edge1.xyz, q) + cp.edge1.w > 0.0
                         && dot(cp.edge2.xyz, q) + cp.edge2.w > 0.0) {

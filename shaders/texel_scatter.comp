@@ -1,7 +1,7 @@
 #version 450
 // Pass 5: writes every listed sample into the compact list array at its
-// texel's offset plus its index, position relative to the light origin
-// (what the occlusion test reads) and triangle id; remembers each
+// texel's offset plus its index, camera-relative position and triangle
+// id (what the occlusion test reads); remembers each
 // sample's slot. Twin: cpu::texel_lists::build_texel_lists.
 #extension GL_GOOGLE_include_directive : require
 #include "hard_common.glsl"
@@ -24,6 +24,6 @@ void main() {
     }
     uint slot = offsets[texel] + sample_slot[i];
     GpuViewSample s = samples[i];
-    list_samples[slot] = vec4(sample_position(s) - pc.origin.xyz, uintBitsToFloat(sample_triangle(s)));
+    list_samples[slot] = vec4(sample_position(s), uintBitsToFloat(sample_triangle(s)));
     sample_slot[i] = slot;
 }

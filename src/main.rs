@@ -4,8 +4,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use alias_free_shadows::dump::{compare, Dump};
-use alias_free_shadows::render::{render_reference, Frame, FrameOptions};
+use alias_free_shadows::render::{render_reference, Engine, Frame, FrameOptions};
 use alias_free_shadows::scene::file::{self, SceneDescription, SoftMode};
+use alias_free_shadows::vulkan::ContextOptions;
 use alias_free_shadows::{scene, vulkan, Error, Result};
 use clap::{Args, Parser, Subcommand};
 
@@ -25,10 +26,11 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Render a scene's shadows and write the shaded image (and optionally a dump).
+    /// Render a scene's shadows on the GPU and write the shaded image (and optionally a dump).
     ///
-    /// Visibility is currently computed by the CPU oracle (the GPU shadow
-    /// passes are not implemented yet); the output says so.
+    /// Point and directional lights use the alias-free hard-shadow passes;
+    /// lights with extent are computed by the CPU oracle until the
+    /// soft-shadow passes exist (the output says so).
     Render(RenderArgs),
     /// Render a scene with the CPU ray-casting oracle (the reference).
     Reference(RenderArgs),
@@ -193,10 +195,16 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => {
             let desc = args.scene()?;
-            eprintln!(
-                "note: the GPU shadow passes are not implemented yet; visibility is computed by the CPU oracle"
-            );
-            let frame = render_reference(
+            if desc.lights.iter().any(|l| l.is_area()) {
+                eprintln!(
+                    "note: soft shadows are not on the GPU yet: lights with extent are computed by the CPU oracle"
+                );
+            }
+            let mut engine = Engine::new(&ContextOptions {
+                device: args.device.clone(),
+                ..Default::default()
+            })?;
+            let frame = engine.render(
                 &desc,
                 FrameOptions {
                     progress: !args.quiet,

@@ -174,3 +174,267 @@ pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Resul
     let dump = make_dump(desc, &view, &light_samples, &visibility, &evaluated, stats);
     Ok(Frame { dump, image })
 }
+
+// ---------------------------------------------------------------------------
+// The GPU frame.
+
+use glam::{DVec3, Vec3};
+
+use crate::cpu::light_view::LightView;
+use crate::gpu::hard_shadows::{gpu_inputs, HardShadowOutput, HardShadowPass};
+use crate::gpu::shared::{counter, GpuTriangle, GpuViewSample};
+use crate::light::{Light, LightShape};
+use crate::oracle::ViewSample;
+use crate::scene::Scene;
+use crate::vulkan::{ContextOptions, GpuContext};
+
+/// The engine: a Vulkan context and the compiled passes, reused frame after frame.
+pub struct Engine {
+    ctx: GpuContext,
+    hard: HardShadowPass,
+}
+
+/// Hard-shadow visibility of a set of view samples for one light.
+#[derive(Clone, Debug)]
+pub struct HardShadowResult {
+    /// Per view sample: `None` when it faces away from the light (unlit
+    /// without a shadow test), else whether it is lit.
+    pub lit: Vec<Option<bool>>,
+    /// Statistics (counters and milliseconds per pass).
+    pub stats: serde_json::Value,
+}
+
+/// The light as the hard-shadow passes see it, camera-relative; `None`
+/// for lights with extent (handled by the soft-shadow path).
+pub fn light_view(light: &Light, eye: DVec3) -> Option<LightView> {
+    match &light.shape {
+        LightShape::Point { position } => Some(LightView::Point {
+            position: (*position - eye).as_vec3(),
+        }),
+        LightShape::Directional { direction } => Some(LightView::Directional {
+            direction: direction.as_vec3(),
+        }),
+        _ => None,
+    }
+}
+
+/// The scene's triangles, camera-relative, in global-id order.
+pub fn gpu_triangles(scene: &Scene, eye: DVec3) -> Vec<([Vec3; 3], bool)> {
+    scene
+        .triangles()
+        .iter()
+        .map(|t| (t.vertices.map(|v| (v - eye).as_vec3()), t.closed))
+        .collect()
+}
+
+fn hard_stats(out: &HardShadowOutput, resolution: u32, faces: usize) -> serde_json::Value {
+    let occupied = out.list_lengths.iter().filter(|&&c| c > 0).count();
+    let listed: u64 = out.list_lengths.iter().map(|&c| c as u64).sum();
+    let max_list = out.list_lengths.iter().copied().max().unwrap_or(0);
+    let c = &out.counters;
+    let culled = c[counter::DEGENERATE] + c[counter::FRONT_FACING_CLOSED] + c[counter::CULLED];
+    let ms: serde_json::Map<String, serde_json::Value> = out
+        .timings
+        .iter()
+        .map(|t| (t.name.clone(), serde_json::json!(t.ms)))
+        .collect();
+    serde_json::json!({
+        "light_texels": resolution,
+        "light_faces": faces,
+        "listed_view_samples": listed,
+        "occupied_texels": occupied,
+        "occupied_texels_percent": 100.0 * occupied as f64 / out.list_lengths.len().max(1) as f64,
+        "average_list_length": listed as f64 / occupied.max(1) as f64,
+        "max_list_length": max_list,
+        "triangles_submitted": c[counter::DEGENERATE] + c[counter::FRONT_FACING_CLOSED] + c[counter::CULLED] + c[counter::RASTERIZED],
+        "triangles_culled": culled,
+        "triangles_degenerate": c[counter::DEGENERATE],
+        "triangles_front_facing_closed": c[counter::FRONT_FACING_CLOSED],
+        "triangles_outside_frustum": c[counter::CULLED],
+        "triangles_rasterized": c[counter::RASTERIZED],
+        "caster_face_pairs": c[counter::PAIRS],
+        "texels_visited": c[counter::TEXELS_VISITED],
+        "view_sample_triangle_tests": c[counter::TESTS],
+        "gpu_buffer_bytes": out.buffer_bytes,
+        "ms": ms,
+        "gpu_ms": out.timings.iter().filter_map(|t| t.ms).sum::<f64>(),
+    })
+}
+
+impl Engine {
+    /// Creates the Vulkan context (device from `options`, `AFS_DEVICE`, or
+    /// the default choice) and compiles the passes.
+    pub fn new(options: &ContextOptions) -> Result<Self> {
+        let ctx = GpuContext::new(options)?;
+        let hard = HardShadowPass::new(&ctx)?;
+        Ok(Engine { ctx, hard })
+    }
+
+    /// The Vulkan context.
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// Hard-shadow visibility of user-supplied view samples (world-space
+    /// positions and unit geometric normals; `triangle` = the scene triangle
+    /// each lies on, or [`crate::oracle::NO_TRIANGLE`]) for a point or
+    /// directional `light`. Positions are made relative to `eye` (the
+    /// camera) before they go to the GPU in `f32`.
+    pub fn hard_shadows(
+        &mut self,
+        scene: &Scene,
+        eye: DVec3,
+        samples: &[Option<ViewSample>],
+        light: &Light,
+        light_texels: u32,
+    ) -> Result<HardShadowResult> {
+        light.validate()?;
+        let lv = light_view(light, eye).ok_or_else(|| {
+            crate::Error::InvalidInput("hard shadows need a point or directional light".into())
+        })?;
+        for (i, s) in samples.iter().enumerate() {
+            if let Some(s) = s {
+                if !s.position.is_finite() || !s.normal.is_finite() {
+                    return Err(crate::Error::InvalidInput(format!(
+                        "view sample {i} is not finite: {s:?}"
+                    )));
+                }
+            }
+        }
+        let with_ids: Vec<_> = samples
+            .iter()
+            .map(|s| {
+                s.map(|s| {
+                    (
+                        (s.position - eye).as_vec3(),
+                        s.normal.as_vec3().normalize_or_zero(),
+                        s.triangle,
+                    )
+                })
+            })
+            .collect();
+        let (vs, ts) = gpu_inputs(&with_ids, &gpu_triangles(scene, eye));
+        self.hard_shadows_gpu(&vs, &ts, &lv, light_texels)
+    }
+
+    /// [`Engine::hard_shadows`] on inputs already in GPU form.
+    pub fn hard_shadows_gpu(
+        &mut self,
+        view_samples: &[GpuViewSample],
+        triangles: &[GpuTriangle],
+        light: &LightView,
+        light_texels: u32,
+    ) -> Result<HardShadowResult> {
+        let out = self
+            .hard
+            .run(&self.ctx, view_samples, triangles, light, light_texels)?;
+        let stats = hard_stats(&out, light_texels, light.face_count());
+        Ok(HardShadowResult {
+            lit: out.lit,
+            stats,
+        })
+    }
+
+    /// Renders a frame: view samples, then per light the hard-shadow passes
+    /// (point and directional lights) or, for lights with extent until the
+    /// soft-shadow passes exist, the CPU oracle; then shading and the dump.
+    pub fn render(&mut self, desc: &SceneDescription, options: FrameOptions) -> Result<Frame> {
+        desc.validate()?;
+        let t0 = Instant::now();
+        let eye = desc.camera.eye;
+        let triangles = desc.scene.triangles();
+        let gpu_tris = gpu_triangles(&desc.scene, eye);
+
+        // 1. View samples. Primary rays on the CPU for now (the GPU
+        // view-sample pass replaces them); the shadow passes read them as
+        // camera-relative f32, and so does the dump.
+        let t = Instant::now();
+        let oracle = Oracle::new(&triangles, eye);
+        let mut view = oracle.primary_view_samples(&desc.camera);
+        let with_ids: Vec<_> = view
+            .samples
+            .iter()
+            .map(|s| s.map(|s| ((s.position - eye).as_vec3(), s.normal.as_vec3(), s.triangle)))
+            .collect();
+        // Keep the CPU copy identical to what the GPU sees.
+        for (s, g) in view.samples.iter_mut().zip(&with_ids) {
+            if let (Some(s), Some((p, n, _))) = (s.as_mut(), g) {
+                s.position = eye + p.as_dvec3();
+                s.normal = n.as_dvec3();
+            }
+        }
+        let (gpu_view, gpu_tris) = gpu_inputs(&with_ids, &gpu_tris);
+        let view_ms = t.elapsed().as_secs_f64() * 1e3;
+
+        // 2-5. Per light: lists, casters, rasterization, occlusion, resolve.
+        let mut light_samples = Vec::new();
+        let mut visibility = Vec::new();
+        let mut evaluated = Vec::new();
+        let mut light_stats = Vec::new();
+        for (k, light) in desc.lights.iter().enumerate() {
+            let samples = light.light_samples();
+            match light_view(light, eye) {
+                Some(lv) => {
+                    let r = self.hard_shadows_gpu(
+                        &gpu_view,
+                        &gpu_tris,
+                        &lv,
+                        desc.shadows.light_texels,
+                    )?;
+                    visibility.push(
+                        r.lit
+                            .iter()
+                            .map(|l| if *l == Some(true) { 1.0 } else { 0.0 })
+                            .collect(),
+                    );
+                    evaluated.push(r.lit.iter().map(|l| l.is_some()).collect());
+                    light_stats.push(serde_json::json!({"light": k, "path": "gpu hard shadows", "stats": r.stats}));
+                }
+                None => {
+                    let t = Instant::now();
+                    let pb = progress_bar(
+                        view.height as u64,
+                        &format!("oracle light {k}"),
+                        options.progress,
+                    );
+                    let vis = oracle.visibility(&view, &samples, pb.as_ref());
+                    if let Some(pb) = pb {
+                        pb.finish_and_clear();
+                    }
+                    evaluated.push(
+                        view.samples
+                            .iter()
+                            .map(|s| s.is_some_and(|s| faces_light(s.position, s.normal, &samples)))
+                            .collect(),
+                    );
+                    visibility.push(vis);
+                    light_stats.push(serde_json::json!({
+                        "light": k,
+                        "path": "cpu oracle (the soft-shadow GPU passes are not implemented yet)",
+                        "ms": t.elapsed().as_secs_f64() * 1e3,
+                    }));
+                }
+            }
+            light_samples.push(samples);
+        }
+        let t = Instant::now();
+        let image = shade(&view, &desc.lights, &visibility);
+        let shade_ms = t.elapsed().as_secs_f64() * 1e3;
+        let stats = serde_json::json!({
+            "device": self.ctx.info().name,
+            "scene": desc.name,
+            "settings": desc.shadows,
+            "width": desc.camera.width,
+            "height": desc.camera.height,
+            "ms": { "view_samples_cpu": view_ms, "shade": shade_ms },
+            "lights": light_stats,
+            "total_ms": t0.elapsed().as_secs_f64() * 1e3,
+            "counters": {
+                "triangles": triangles.len(),
+                "view_samples": gpu_view.iter().filter(|s| s.flags != 0).count(),
+            }
+        });
+        let dump = make_dump(desc, &view, &light_samples, &visibility, &evaluated, stats);
+        Ok(Frame { dump, image })
+    }
+}

@@ -14,9 +14,15 @@ use glam::{Vec2, Vec3};
 
 use super::light_view::{FaceWindow, LightView};
 
-/// A caster's planes, evaluated on `q = p - light.origin()`:
-/// blocked ⇔ `dot(support.xyz, q) + support.w < 0` and every
+/// A caster's planes. The supporting plane is evaluated on the
+/// camera-relative sample position `p`, the edge planes on `q = p - origin`
+/// (the light position for a point light, 0 for a directional light):
+/// blocked ⇔ `dot(support.xyz, p) + support.w < 0` and every
 /// `dot(edge.xyz, q) + edge.w > 0` (and `p` is not on the caster itself).
+///
+/// Conditioning: every normal is a cross product with one short edge
+/// vector (`(v_a - L) × (v_b - v_a)`, not `(v_a - L) × (v_b - L)`), so a
+/// small triangle far from the light keeps f32-accurate planes.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct CasterPlanes {
     /// Supporting plane, positive on the light's side.
@@ -27,10 +33,12 @@ pub struct CasterPlanes {
 }
 
 impl CasterPlanes {
-    /// Whether the caster blocks the light from `q` (light-relative position).
-    pub fn blocks(&self, q: Vec3) -> bool {
-        let d = |p: &[f32; 4]| p[0] * q.x + p[1] * q.y + p[2] * q.z + p[3];
-        d(&self.support) < 0.0 && self.edges.iter().all(|e| d(e) > 0.0)
+    /// Whether the caster blocks the light from camera-relative `p`, with
+    /// `origin` = [`LightView::origin`].
+    pub fn blocks(&self, p: Vec3, origin: Vec3) -> bool {
+        let q = p - origin;
+        let d = |pl: &[f32; 4], x: Vec3| pl[0] * x.x + pl[1] * x.y + pl[2] * x.z + pl[3];
+        d(&self.support, p) < 0.0 && self.edges.iter().all(|e| d(e, q) > 0.0)
     }
 }
 
@@ -66,14 +74,13 @@ pub const TEXEL_MARGIN: f32 = 0.01;
 /// Planes of triangle `v` (camera-relative), or why it cannot cast.
 pub fn caster_planes(light: &LightView, v: [Vec3; 3], closed: bool) -> Result<CasterPlanes, Skip> {
     let o = light.origin();
-    let q = [v[0] - o, v[1] - o, v[2] - o];
-    let n = (q[1] - q[0]).cross(q[2] - q[0]);
+    let n = (v[1] - v[0]).cross(v[2] - v[0]);
     if !n.is_finite() || n == Vec3::ZERO {
         return Err(Skip::Degenerate);
     }
     // Signed distance of the light from the plane (times |n|).
     let s_light = match light {
-        LightView::Point { .. } => -n.dot(q[0]),
+        LightView::Point { .. } => n.dot(o - v[0]),
         LightView::Directional { direction } => n.dot(-*direction),
     };
     if s_light == 0.0 || !s_light.is_finite() {
@@ -82,24 +89,26 @@ pub fn caster_planes(light: &LightView, v: [Vec3; 3], closed: bool) -> Result<Ca
     if closed && s_light > 0.0 {
         return Err(Skip::FrontFacingClosed);
     }
-    let sign = s_light.signum();
-    let ns = n * sign;
-    let support = [ns.x, ns.y, ns.z, -ns.dot(q[0])];
+    let ns = n * s_light.signum();
+    let support = [ns.x, ns.y, ns.z, -ns.dot(v[0])];
     let mut edges = [[0.0; 4]; 3];
     for (k, e) in edges.iter_mut().enumerate() {
-        let a = q[k];
-        let b = q[(k + 1) % 3];
-        let c = q[(k + 2) % 3];
-        let (m, w) = match light {
-            // Plane through the light (the origin) and the edge.
-            LightView::Point { .. } => (a.cross(b), 0.0),
+        let a = v[k];
+        let b = v[(k + 1) % 3];
+        let c = v[(k + 2) % 3];
+        let (m, w, inside) = match light {
+            // Plane through the light and the edge, in light-relative coordinates.
+            LightView::Point { .. } => {
+                let m = (a - o).cross(b - a);
+                (m, 0.0, m.dot(c - o))
+            }
             LightView::Directional { direction } => {
                 let m = (b - a).cross(*direction);
-                (m, -m.dot(a))
+                (m, -m.dot(a), m.dot(c - a))
             }
         };
         // Orient inside (towards the third vertex) as positive.
-        let (m, w) = if m.dot(c) + w < 0.0 { (-m, -w) } else { (m, w) };
+        let (m, w) = if inside < 0.0 { (-m, -w) } else { (m, w) };
         *e = [m.x, m.y, m.z, w];
     }
     Ok(CasterPlanes { support, edges })

@@ -68,7 +68,7 @@ pub fn occlusion(
                     }
                     counts.tests += 1;
                     let (p, _) = samples[i].expect("listed samples exist");
-                    if pl.blocks(p - origin) {
+                    if pl.blocks(p, origin) {
                         shadowed[i] = true;
                     }
                 }

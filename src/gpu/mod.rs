@@ -10,3 +10,4 @@ pub mod hard_shadows;
 pub mod scan;
 pub mod shaders;
 pub mod shared;
+pub mod view_samples;

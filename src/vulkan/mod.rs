@@ -72,6 +72,7 @@ pub mod buffer;
 pub mod commands;
 pub mod context;
 pub mod device;
+pub mod graphics;
 pub mod image;
 pub mod instance;
 pub mod pipeline;
@@ -84,6 +85,10 @@ pub use buffer::{storage_binding_ranges, Buffer, BufferDesc, BufferSlice, Memory
 pub use commands::CommandRecorder;
 pub use context::{ContextOptions, GpuContext};
 pub use device::{list_devices, Device, DeviceInfo, DeviceLimits, DeviceType, MemoryHeapInfo};
+pub use graphics::{
+    vertex_input_barrier, Attachment, Framebuffer, GraphicsPipeline, GraphicsPipelineDesc,
+    VertexAttribute,
+};
 pub use image::{Image, ImageDesc};
 pub use instance::{Instance, ValidationLevel, ValidationMessages};
 pub use pipeline::{Binding, ComputePipeline, ComputePipelineDesc, DescriptorKind};

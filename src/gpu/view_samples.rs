@@ -1,0 +1,261 @@
+//! The first pass of a frame: the view samples, what the camera sees. One
+//! [`GpuViewSample`] per pixel (index `y * width + x`, `y = 0` the top row,
+//! as [`Camera::ray_direction`]): the camera-relative point where the
+//! pixel-centre ray meets the nearest triangle, that triangle's global id and
+//! its unit geometric normal flipped to face the camera, flagged
+//! [`VIEW_SAMPLE_VALID`]; all zero where nothing is seen.
+//!
+//! Two GPU steps:
+//!
+//! 1. **Raster** (`shaders/view_samples.{vert,frag}`): the triangles, read
+//!    straight from the [`GpuTriangle`] buffer bound as a vertex buffer
+//!    (16-byte stride: each `vec4` holds one vertex), are drawn non-indexed
+//!    with an infinite reversed-Z perspective (`D32_SFLOAT`, test `GREATER`,
+//!    so equal depths keep the earlier, smaller id like the oracle), no
+//!    culling; the fragment shader writes `id + 1` to an `R32_UINT`
+//!    attachment (0 = nothing). The rasteriser samples pixel centres, so a
+//!    pixel's id is the triangle its centre ray meets, up to edge rules.
+//! 2. **Resolve** (`shaders/view_samples_resolve.comp`): per pixel, the
+//!    pixel-centre ray (same formula as [`Camera::ray_direction`], in f32) is
+//!    intersected with that triangle's plane — exact rather than an
+//!    interpolated depth — and the sample written to a storage buffer.
+//!
+//! The near plane is `1e-6 ×` the distance of the farthest vertex; there is
+//! no far plane.
+
+use glam::DVec3;
+
+use crate::gpu::shaders;
+#[cfg(doc)]
+use crate::gpu::shared::VIEW_SAMPLE_VALID;
+use crate::gpu::shared::{GpuTriangle, GpuViewSample};
+use crate::scene::Camera;
+use crate::vulkan::{
+    vertex_input_barrier, vk, Attachment, Barrier, Binding, Buffer, BufferDesc, ComputePipeline,
+    ComputePipelineDesc, DescriptorKind, Framebuffer, GpuContext, GraphicsPipeline,
+    GraphicsPipelineDesc, Profiler, VertexAttribute,
+};
+use crate::{Error, Result};
+
+/// Push constants of `view_samples.vert`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct RasterPush {
+    /// xyz: right / (tan(fov/2) · aspect).
+    right: [f32; 4],
+    /// xyz: −up / tan(fov/2).
+    down: [f32; 4],
+    /// xyz: forward; w: near.
+    forward: [f32; 4],
+}
+
+/// Push constants of `view_samples_resolve.comp`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct ResolvePush {
+    /// xyz: right; w: tan(fov/2) · aspect.
+    right: [f32; 4],
+    /// xyz: up; w: tan(fov/2).
+    up: [f32; 4],
+    /// xyz: forward.
+    forward: [f32; 4],
+    /// width, height, triangles, 0.
+    sizes: [u32; 4],
+}
+
+/// Render targets of one image size. Field order: the framebuffer is
+/// destroyed before its attachments.
+struct Targets {
+    framebuffer: Framebuffer,
+    ids: Attachment,
+    _depth: Attachment,
+    extent: [u32; 2],
+}
+
+/// The view-sample pass: pipelines made once, render targets kept per image
+/// size. See the [module documentation](self).
+pub struct ViewSamplePass {
+    raster: GraphicsPipeline,
+    resolve: ComputePipeline,
+    targets: Option<Targets>,
+}
+
+const ID_FORMAT: vk::Format = vk::Format::R32_UINT;
+const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
+
+impl ViewSamplePass {
+    /// Builds both pipelines; fails when the device's queue cannot do graphics.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let raster = ctx.create_graphics_pipeline(&GraphicsPipelineDesc {
+            name: "view_samples_raster",
+            vertex: shaders::VIEW_SAMPLES_VERT,
+            fragment: shaders::VIEW_SAMPLES_FRAG,
+            vertex_stride: 16,
+            attributes: &[VertexAttribute {
+                location: 0,
+                format: vk::Format::R32G32B32_SFLOAT,
+                offset: 0,
+            }],
+            color_formats: &[ID_FORMAT],
+            depth: Some((DEPTH_FORMAT, vk::CompareOp::GREATER)),
+            cull_mode: vk::CullModeFlags::NONE,
+            push_constant_bytes: std::mem::size_of::<RasterPush>() as u32,
+        })?;
+        let resolve = ctx.create_compute_pipeline(&ComputePipelineDesc {
+            name: "view_samples_resolve",
+            spirv: shaders::VIEW_SAMPLES_RESOLVE,
+            bindings: &[
+                DescriptorKind::UniformTexelBuffer,
+                DescriptorKind::UniformTexelBuffer,
+                DescriptorKind::StorageBuffer,
+            ],
+            push_constant_bytes: std::mem::size_of::<ResolvePush>() as u32,
+            specialization: &[],
+        })?;
+        Ok(ViewSamplePass {
+            raster,
+            resolve,
+            targets: None,
+        })
+    }
+
+    /// Makes the render targets for `extent` (again) when the size changed.
+    fn ensure_targets(&mut self, ctx: &GpuContext, extent: [u32; 2]) -> Result<()> {
+        if self.targets.as_ref().is_none_or(|t| t.extent != extent) {
+            self.targets = None;
+            let ids = ctx.create_attachment("view_sample_ids", extent, ID_FORMAT, false)?;
+            let depth = ctx.create_attachment("view_sample_depth", extent, DEPTH_FORMAT, true)?;
+            let framebuffer = self.raster.framebuffer(&[&ids], Some(&depth))?;
+            self.targets = Some(Targets {
+                framebuffer,
+                ids,
+                _depth: depth,
+                extent,
+            });
+        }
+        Ok(())
+    }
+
+    /// Renders `triangles` (camera-relative [`GpuTriangle`]s, e.g. from
+    /// [`crate::gpu::hard_shadows::gpu_inputs`]; ids are indices into this
+    /// slice) seen by `camera` (its eye is the origin of the triangles) into
+    /// a new GPU buffer of `width × height` [`GpuViewSample`]s, and returns
+    /// it with the GPU milliseconds of the raster and resolve steps (NaN when
+    /// the device has no timestamps). Uploading the triangles is not timed.
+    pub fn render(
+        &mut self,
+        ctx: &GpuContext,
+        camera: &Camera,
+        triangles: &[GpuTriangle],
+    ) -> Result<(Buffer, f64)> {
+        camera.validate()?;
+        let (width, height) = (camera.width, camera.height);
+        let pixels = width as u64 * height as u64;
+        let out_bytes = pixels * std::mem::size_of::<GpuViewSample>() as u64;
+        let limits = ctx.device().limits().clone();
+        if out_bytes > limits.max_storage_buffer_range as u64 {
+            return Err(Error::InvalidInput(format!(
+                "{width}x{height} view samples need {out_bytes} bytes, more than the device's \
+                 maxStorageBufferRange of {} bytes",
+                limits.max_storage_buffer_range
+            )));
+        }
+        let nt = u32::try_from(triangles.len())
+            .ok()
+            .filter(|&n| (n as u64) * 3 <= limits.max_texel_buffer_elements as u64)
+            .ok_or_else(|| {
+                Error::InvalidInput(format!(
+                    "{} triangles are more than the view-sample pass can draw on this device",
+                    triangles.len()
+                ))
+            })?;
+
+        // Camera basis and frustum in f32 (the eye is the origin).
+        let (r, u, f) = camera.basis();
+        let tan_half = (camera.fov_y_deg.to_radians() * 0.5).tan();
+        let aspect = width as f64 / height as f64;
+        let v4 = |v: DVec3, w: f64| [v.x as f32, v.y as f32, v.z as f32, w as f32];
+        let far = triangles
+            .iter()
+            .flat_map(|t| [t.v0, t.v1, t.v2])
+            .map(|v| glam::Vec3::from_array(v).length())
+            .filter(|l| l.is_finite())
+            .fold(0.0f32, f32::max);
+        let near = if far > 0.0 { far * 1e-6 } else { 1e-6 };
+        let raster_push = RasterPush {
+            right: v4(r / (tan_half * aspect), 0.0),
+            down: v4(-u / tan_half, 0.0),
+            forward: [f.x as f32, f.y as f32, f.z as f32, near],
+        };
+        let resolve_push = ResolvePush {
+            right: v4(r, tan_half * aspect),
+            up: v4(u, tan_half),
+            forward: v4(f, 0.0),
+            sizes: [width, height, nt, 0],
+        };
+
+        let mut desc = BufferDesc::storage("view_triangles", 48 * nt.max(1) as u64);
+        desc.usage |= vk::BufferUsageFlags::VERTEX_BUFFER;
+        let tri_buf = ctx.create_buffer(desc)?;
+        if nt > 0 {
+            ctx.upload(&tri_buf, 0, triangles)?;
+        }
+        let ids_buf = ctx.create_buffer(BufferDesc::storage("view_sample_ids", 4 * pixels))?;
+        let out = ctx.create_buffer(BufferDesc::storage("view_samples", out_bytes))?;
+
+        self.ensure_targets(ctx, [width, height])?;
+        let targets = self.targets.as_ref().expect("made above");
+        let mut profiler = Profiler::new(ctx, 1)?;
+        let mut rec = ctx.begin()?;
+        vertex_input_barrier(&mut rec);
+        let scope = profiler.begin(&mut rec, "view_samples")?;
+        let clear = [
+            vk::ClearValue {
+                color: vk::ClearColorValue { uint32: [0; 4] },
+            },
+            vk::ClearValue {
+                depth_stencil: vk::ClearDepthStencilValue {
+                    depth: 0.0,
+                    stencil: 0,
+                },
+            },
+        ];
+        rec.draw_pass(
+            &self.raster,
+            &targets.framebuffer,
+            &clear,
+            Some(&tri_buf),
+            bytemuck::bytes_of(&raster_push),
+            3 * nt,
+        )?;
+        rec.copy_attachment_to_buffer(&targets.ids, 4, &ids_buf)?;
+        rec.barrier(Barrier::TransferToCompute);
+        // A texel view may not be empty: with no triangles the one-triangle
+        // buffer is bound (and never read: every id is 0).
+        let tri_binding = Binding::uniform_texel(
+            tri_buf.slice(0, 48 * nt.max(1) as u64)?,
+            vk::Format::R32G32B32A32_SFLOAT,
+        );
+        rec.dispatch(
+            &self.resolve,
+            &[
+                Binding::uniform_texel(&ids_buf, vk::Format::R32_UINT),
+                tri_binding,
+                Binding::storage(&out),
+            ],
+            bytemuck::bytes_of(&resolve_push),
+            [width.div_ceil(8), height.div_ceil(8), 1],
+        )?;
+        profiler.end(&mut rec, scope);
+        rec.barrier(Barrier::ComputeToCompute);
+        ctx.submit_and_wait(rec)?;
+        let ms = profiler.pass_ms("view_samples")?.unwrap_or(f64::NAN);
+        Ok((out, ms))
+    }
+}
+
+/// Reads the first `n` [`GpuViewSample`]s of `buf` (e.g. the buffer
+/// [`ViewSamplePass::render`] returned) back to the CPU.
+pub fn read_view_samples(ctx: &GpuContext, buf: &Buffer, n: usize) -> Result<Vec<GpuViewSample>> {
+    ctx.read_buffer(buf, 0, n)
+}
