@@ -58,6 +58,7 @@ void main() {
     cp.edge0 = vec4(0.0);
     cp.edge1 = vec4(0.0);
     cp.edge2 = vec4(0.0);
+    cp.side = vec4(0.0);
     bool point = is_point_light();
     float s_light = point ? dot(n, o - v[0]) : dot(n, -pc.direction.xyz);
     if (any(isnan(n)) || any(isinf(n)) || n == vec3(0.0) || s_light == 0.0 || isnan(s_light) || isinf(s_light)) {
@@ -73,25 +74,27 @@ void main() {
     vec3 ns = n * sign(s_light);
     cp.support = vec4(ns, -dot(ns, v[0]));
     vec4 e[3];
+    float side[3];
     for (int k = 0; k < 3; k++) {
         vec3 a = v[k], b = v[(k + 1) % 3], c = v[(k + 2) % 3];
+        // Canonical endpoint order (lexicographic), shared by both triangles of an edge.
+        bool swap_ab = a.x > b.x || (a.x == b.x && (a.y > b.y || (a.y == b.y && a.z > b.z)));
+        vec3 lo = swap_ab ? b : a, hi = swap_ab ? a : b;
         vec3 m;
         float w, inside;
         if (point) {
-            m = cross(a - o, b - a);
+            m = cross(lo - o, hi - lo);
             w = 0.0;
             inside = dot(m, c - o);
         } else {
-            m = cross(b - a, pc.direction.xyz);
-            w = -dot(m, a);
-            inside = dot(m, c - a);
-        }
-        if (inside < 0.0) {
-            m = -m;
-            w = -w;
+            m = cross(hi - lo, pc.direction.xyz);
+            w = -dot(m, lo);
+            inside = dot(m, c) + w;
         }
         e[k] = vec4(m, w);
+        side[k] = inside < 0.0 ? -1.0 : 1.0;
     }
+    cp.side = vec4(side[0], side[1], side[2], 0.0);
     cp.edge0 = e[0];
     cp.edge1 = e[1];
     cp.edge2 = e[2];

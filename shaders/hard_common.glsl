@@ -56,12 +56,23 @@ struct LightFace {
 
 // A caster's planes: blocked <=> dot(support, p) + w < 0 on the camera-relative p
 // and every dot(edge_k, q) + w > 0 on q = p - origin.
+// Edge planes are computed from the edge's endpoints in a canonical order,
+// so the two triangles sharing an edge get exactly negated planes; `side`
+// (+1/-1) orients each, and a point exactly on the plane (value 0) is inside
+// for the +1 side only: a ray through a shared edge is claimed by exactly one
+// of the two triangles (watertight, like the oracle's test).
 struct CasterPlanes {
     vec4 support;
     vec4 edge0;
     vec4 edge1;
     vec4 edge2;
+    vec4 side;    // xyz: +1 or -1 per edge
 };
+
+bool inside_edge(vec4 e, float side, vec3 q) {
+    float v = dot(e.xyz, q) + e.w;
+    return side > 0.0 ? v >= 0.0 : v < 0.0;
+}
 
 // One (caster, face) pair to rasterize.
 struct CasterFace {

@@ -86,9 +86,9 @@ void main() {
                     // planes on the light-relative one (cpu::casters::CasterPlanes::blocks).
                     vec3 q = qs.xyz - pc.origin.xyz;
                     if (dot(cp.support.xyz, qs.xyz) + cp.support.w < 0.0
-                        && dot(cp.edge0.xyz, q) + cp.edge0.w > 0.0
-                        && dot(cp.edge1.xyz, q) + cp.edge1.w > 0.0
-                        && dot(cp.edge2.xyz, q) + cp.edge2.w > 0.0) {
+                        && inside_edge(cp.edge0, cp.side.x, q)
+                        && inside_edge(cp.edge1, cp.side.y, q)
+                        && inside_edge(cp.edge2, cp.side.z, q)) {
                         shadowed[s] = 1u;
                     }
                 }

@@ -21,6 +21,8 @@ use crate::Result;
 pub struct Frame {
     pub dump: Dump,
     pub image: image::RgbImage,
+    /// The view samples the frame used (with triangle ids, which the dump omits).
+    pub view: ViewSamples,
 }
 
 /// Options for a frame.
@@ -172,7 +174,7 @@ pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Resul
         }
     });
     let dump = make_dump(desc, &view, &light_samples, &visibility, &evaluated, stats);
-    Ok(Frame { dump, image })
+    Ok(Frame { dump, image, view })
 }
 
 // ---------------------------------------------------------------------------
@@ -183,14 +185,17 @@ use glam::{DVec3, Vec3};
 use crate::cpu::light_view::LightView;
 use crate::gpu::hard_shadows::{gpu_inputs, HardShadowOutput, HardShadowPass};
 use crate::gpu::shared::{counter, GpuTriangle, GpuViewSample};
+use crate::gpu::view_samples::{read_view_samples, ViewSamplePass};
 use crate::light::{Light, LightShape};
 use crate::oracle::ViewSample;
 use crate::scene::Scene;
+use crate::vulkan::BufferDesc;
 use crate::vulkan::{ContextOptions, GpuContext};
 
 /// The engine: a Vulkan context and the compiled passes, reused frame after frame.
 pub struct Engine {
     ctx: GpuContext,
+    view: ViewSamplePass,
     hard: HardShadowPass,
 }
 
@@ -267,7 +272,8 @@ impl Engine {
     pub fn new(options: &ContextOptions) -> Result<Self> {
         let ctx = GpuContext::new(options)?;
         let hard = HardShadowPass::new(&ctx)?;
-        Ok(Engine { ctx, hard })
+        let view = ViewSamplePass::new(&ctx)?;
+        Ok(Engine { ctx, view, hard })
     }
 
     /// The Vulkan context.
@@ -345,26 +351,35 @@ impl Engine {
         let triangles = desc.scene.triangles();
         let gpu_tris = gpu_triangles(&desc.scene, eye);
 
-        // 1. View samples. Primary rays on the CPU for now (the GPU
-        // view-sample pass replaces them); the shadow passes read them as
-        // camera-relative f32, and so does the dump.
-        let t = Instant::now();
-        let oracle = Oracle::new(&triangles, eye);
-        let mut view = oracle.primary_view_samples(&desc.camera);
-        let with_ids: Vec<_> = view
-            .samples
-            .iter()
-            .map(|s| s.map(|s| ((s.position - eye).as_vec3(), s.normal.as_vec3(), s.triangle)))
-            .collect();
-        // Keep the CPU copy identical to what the GPU sees.
-        for (s, g) in view.samples.iter_mut().zip(&with_ids) {
-            if let (Some(s), Some((p, n, _))) = (s.as_mut(), g) {
-                s.position = eye + p.as_dvec3();
-                s.normal = n.as_dvec3();
-            }
+        // 1. View samples: rasterized on the GPU, exact ray-plane positions.
+        let (_, gpu_tris) = gpu_inputs(&[], &gpu_tris);
+        let (view_buf, view_ms) = self.view.render(&self.ctx, &desc.camera, &gpu_tris)?;
+        let n = (desc.camera.width * desc.camera.height) as usize;
+        let gpu_view = read_view_samples(&self.ctx, &view_buf, n)?;
+        // The CPU copy (shading, dump, oracle fallback) is exactly what the GPU has.
+        let view = ViewSamples {
+            width: desc.camera.width,
+            height: desc.camera.height,
+            eye,
+            samples: gpu_view
+                .iter()
+                .map(|s| {
+                    (s.flags != 0).then(|| ViewSample {
+                        position: eye + Vec3::from_array(s.position).as_dvec3(),
+                        normal: Vec3::from_array(s.normal).as_dvec3(),
+                        triangle: s.triangle,
+                    })
+                })
+                .collect(),
+        };
+        let tri_buf = self.ctx.create_buffer(BufferDesc::storage(
+            "triangles",
+            (48 * gpu_tris.len() as u64).max(16),
+        ))?;
+        if !gpu_tris.is_empty() {
+            self.ctx.upload_staged(&tri_buf, 0, &gpu_tris)?;
         }
-        let (gpu_view, gpu_tris) = gpu_inputs(&with_ids, &gpu_tris);
-        let view_ms = t.elapsed().as_secs_f64() * 1e3;
+        let oracle = Oracle::new(&triangles, eye);
 
         // 2-5. Per light: lists, casters, rasterization, occlusion, resolve.
         let mut light_samples = Vec::new();
@@ -426,7 +441,7 @@ impl Engine {
             "settings": desc.shadows,
             "width": desc.camera.width,
             "height": desc.camera.height,
-            "ms": { "view_samples_cpu": view_ms, "shade": shade_ms },
+            "ms": { "view_samples_gpu": view_ms, "shade_cpu": shade_ms },
             "lights": light_stats,
             "total_ms": t0.elapsed().as_secs_f64() * 1e3,
             "counters": {
@@ -435,6 +450,6 @@ impl Engine {
             }
         });
         let dump = make_dump(desc, &view, &light_samples, &visibility, &evaluated, stats);
-        Ok(Frame { dump, image })
+        Ok(Frame { dump, image, view })
     }
 }

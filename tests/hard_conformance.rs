@@ -370,3 +370,43 @@ fn closed_torus_knot_terminator() {
         512,
     );
 }
+
+/// The whole frame (`afs render`): GPU view samples, GPU hard shadows; the
+/// oracle judges the frame's own view samples.
+#[test]
+fn rendered_frames_conform() {
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    for spec in [
+        "builtin:plane_sphere",
+        "builtin:columns",
+        "builtin:hairball",
+        "builtin:stairs",
+    ] {
+        let desc = sized(file::load(spec).unwrap(), 128);
+        let frame = engine.render(&desc, Default::default()).unwrap();
+        let oracle = Oracle::new(&desc.scene.triangles(), desc.camera.eye);
+        let light = &desc.lights[0];
+        let want = oracle.visibility(&frame.view, &light.light_samples(), None);
+        let mut disagree = 0;
+        let mut in_band_count = 0;
+        let mut n = 0;
+        for (i, s) in frame.view.samples.iter().enumerate() {
+            let Some(s) = s else { continue };
+            n += 1;
+            let got = frame.dump.visibility[0][i][0];
+            if (got > 0.5) != (want[i] > 0.5) {
+                disagree += 1;
+                if in_band(&oracle, s, light) {
+                    in_band_count += 1;
+                }
+            }
+        }
+        eprintln!("frame {spec} at 128²: {n} view samples, {disagree} disagree, {in_band_count} within the epsilon band");
+        assert!(n > 0);
+        assert_eq!(
+            disagree, in_band_count,
+            "{spec}: disagreements outside the epsilon band"
+        );
+    }
+    engine.context().check_validation().unwrap();
+}

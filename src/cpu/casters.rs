@@ -28,8 +28,14 @@ pub struct CasterPlanes {
     /// Supporting plane, positive on the light's side.
     pub support: [f32; 4],
     /// The three planes through the light and each edge (through each
-    /// edge along the direction for a directional light), positive inside.
+    /// edge along the direction for a directional light), computed from the
+    /// edge's endpoints in canonical (lexicographic) order so that the two
+    /// triangles sharing an edge get exactly negated planes.
     pub edges: [[f32; 4]; 3],
+    /// Per edge: +1 when the plane's positive side is inside, -1 otherwise.
+    /// A point exactly on an edge plane is inside for the +1 side only, so a
+    /// ray through a shared edge is claimed by exactly one triangle.
+    pub side: [f32; 3],
 }
 
 impl CasterPlanes {
@@ -38,7 +44,15 @@ impl CasterPlanes {
     pub fn blocks(&self, p: Vec3, origin: Vec3) -> bool {
         let q = p - origin;
         let d = |pl: &[f32; 4], x: Vec3| pl[0] * x.x + pl[1] * x.y + pl[2] * x.z + pl[3];
-        d(&self.support, p) < 0.0 && self.edges.iter().all(|e| d(e, q) > 0.0)
+        d(&self.support, p) < 0.0
+            && self.edges.iter().zip(self.side).all(|(e, side)| {
+                let v = d(e, q);
+                if side > 0.0 {
+                    v >= 0.0
+                } else {
+                    v < 0.0
+                }
+            })
     }
 }
 
@@ -92,26 +106,33 @@ pub fn caster_planes(light: &LightView, v: [Vec3; 3], closed: bool) -> Result<Ca
     let ns = n * s_light.signum();
     let support = [ns.x, ns.y, ns.z, -ns.dot(v[0])];
     let mut edges = [[0.0; 4]; 3];
-    for (k, e) in edges.iter_mut().enumerate() {
+    let mut side = [1.0; 3];
+    for k in 0..3 {
         let a = v[k];
         let b = v[(k + 1) % 3];
         let c = v[(k + 2) % 3];
+        let swap = a.x > b.x || (a.x == b.x && (a.y > b.y || (a.y == b.y && a.z > b.z)));
+        let (lo, hi) = if swap { (b, a) } else { (a, b) };
         let (m, w, inside) = match light {
             // Plane through the light and the edge, in light-relative coordinates.
             LightView::Point { .. } => {
-                let m = (a - o).cross(b - a);
+                let m = (lo - o).cross(hi - lo);
                 (m, 0.0, m.dot(c - o))
             }
             LightView::Directional { direction } => {
-                let m = (b - a).cross(*direction);
-                (m, -m.dot(a), m.dot(c - a))
+                let m = (hi - lo).cross(*direction);
+                let w = -m.dot(lo);
+                (m, w, m.dot(c) + w)
             }
         };
-        // Orient inside (towards the third vertex) as positive.
-        let (m, w) = if inside < 0.0 { (-m, -w) } else { (m, w) };
-        *e = [m.x, m.y, m.z, w];
+        edges[k] = [m.x, m.y, m.z, w];
+        side[k] = if inside < 0.0 { -1.0 } else { 1.0 };
     }
-    Ok(CasterPlanes { support, edges })
+    Ok(CasterPlanes {
+        support,
+        edges,
+        side,
+    })
 }
 
 /// Why a triangle does not cast.

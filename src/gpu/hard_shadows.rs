@@ -114,12 +114,50 @@ impl HardShadowPass {
 
     /// Computes hard-shadow visibility of `view_samples` (camera-relative)
     /// from `light` with the scene's `triangles` over `resolution`² light
-    /// texels per face.
+    /// texels per face (uploads both, then [`HardShadowPass::run_on`]).
     pub fn run(
         &mut self,
         ctx: &GpuContext,
         view_samples: &[GpuViewSample],
         triangles: &[GpuTriangle],
+        light: &LightView,
+        resolution: u32,
+    ) -> Result<HardShadowOutput> {
+        let samples_buf = ctx.create_buffer(BufferDesc::storage(
+            "view_samples",
+            (32 * view_samples.len() as u64).max(16),
+        ))?;
+        let triangles_buf = ctx.create_buffer(BufferDesc::storage(
+            "triangles",
+            (48 * triangles.len() as u64).max(16),
+        ))?;
+        if !view_samples.is_empty() {
+            ctx.upload_staged(&samples_buf, 0, view_samples)?;
+        }
+        if !triangles.is_empty() {
+            ctx.upload_staged(&triangles_buf, 0, triangles)?;
+        }
+        self.run_on(
+            ctx,
+            &samples_buf,
+            view_samples.len(),
+            &triangles_buf,
+            triangles.len(),
+            light,
+            resolution,
+        )
+    }
+
+    /// [`HardShadowPass::run`] on view samples and triangles already on the
+    /// GPU (e.g. the view-sample pass's output): `n` samples, `nt` triangles.
+    #[allow(clippy::too_many_arguments)]
+    pub fn run_on(
+        &mut self,
+        ctx: &GpuContext,
+        samples_buf: &Buffer,
+        n: usize,
+        triangles_buf: &Buffer,
+        nt: usize,
         light: &LightView,
         resolution: u32,
     ) -> Result<HardShadowOutput> {
@@ -136,10 +174,14 @@ impl HardShadowPass {
                 self.scan.max_len()
             )));
         }
-        let n = u32::try_from(view_samples.len())
-            .map_err(|_| Error::InvalidInput("too many view samples".into()))?;
-        let nt = u32::try_from(triangles.len())
-            .map_err(|_| Error::InvalidInput("too many triangles".into()))?;
+        let n =
+            u32::try_from(n).map_err(|_| Error::InvalidInput("too many view samples".into()))?;
+        let nt = u32::try_from(nt).map_err(|_| Error::InvalidInput("too many triangles".into()))?;
+        if samples_buf.size() < 32 * n as u64 || triangles_buf.size() < 48 * nt as u64 {
+            return Err(Error::InvalidInput(
+                "view-sample or triangle buffer smaller than its count".into(),
+            ));
+        }
         let tiles_per_row = resolution.div_ceil(TILE);
         let tiles_per_face = tiles_per_row * tiles_per_row;
         let tiles = faces * tiles_per_face;
@@ -166,14 +208,12 @@ impl HardShadowPass {
         };
         let pc = bytemuck::bytes_of(&push);
 
-        let mut bytes = 0u64;
+        let mut bytes = samples_buf.size() + triangles_buf.size();
         let mut buffer = |name: &str, size: u64| -> Result<Buffer> {
             let size = size.max(16);
             bytes += size;
             ctx.create_buffer(BufferDesc::storage(name, size))
         };
-        let samples_buf = buffer("view_samples", 32 * n as u64)?;
-        let triangles_buf = buffer("triangles", 48 * nt as u64)?;
         let fit = buffer("light_fit_keys", 4 * 8 * 6)?;
         let faces_buf = buffer("light_faces", 128 * 6)?;
         let counts = buffer("texel_counts", 4 * texels)?;
@@ -181,7 +221,7 @@ impl HardShadowPass {
         let sample_texel = buffer("sample_texel", 4 * n as u64)?;
         let sample_slot = buffer("sample_slot", 4 * n as u64)?;
         let list_samples = buffer("light_texel_lists", 16 * n as u64)?;
-        let planes = buffer("caster_planes", 64 * nt as u64)?;
+        let planes = buffer("caster_planes", 80 * nt as u64)?;
         let pairs = buffer("caster_faces", 64 * pair_capacity as u64)?;
         let counters = buffer("counters", 4 * counter::COUNT as u64)?;
         let tile_counts = buffer("tile_counts", 4 * tiles as u64)?;
@@ -192,12 +232,6 @@ impl HardShadowPass {
         let shadowed = buffer("shadowed", 4 * n as u64)?;
         let result = buffer("result", 4 * n as u64)?;
 
-        if n > 0 {
-            ctx.upload_staged(&samples_buf, 0, view_samples)?;
-        }
-        if nt > 0 {
-            ctx.upload_staged(&triangles_buf, 0, triangles)?;
-        }
         let mut fit_init = [0u32; 48];
         for f in 0..6 {
             fit_init[f * 8] = u32::MAX;
@@ -214,7 +248,7 @@ impl HardShadowPass {
         rec.fill_buffer(tile_max_len.whole(), 0)?;
         rec.barrier(Barrier::TransferToCompute);
         timed(&mut prof1, &mut rec, "light_fit", |rec| {
-            rec.dispatch(&self.light_fit, &[s(&samples_buf), s(&fit)], pc, groups(n))?;
+            rec.dispatch(&self.light_fit, &[s(samples_buf), s(&fit)], pc, groups(n))?;
             rec.barrier(Barrier::ComputeToCompute);
             rec.dispatch(
                 &self.light_fit_finalize,
@@ -229,7 +263,7 @@ impl HardShadowPass {
             rec.dispatch(
                 &self.texel_count,
                 &[
-                    s(&samples_buf),
+                    s(samples_buf),
                     s(&faces_buf),
                     s(&counts),
                     s(&sample_texel),
@@ -250,7 +284,7 @@ impl HardShadowPass {
             rec.dispatch(
                 &self.texel_scatter,
                 &[
-                    s(&samples_buf),
+                    s(samples_buf),
                     s(&offsets),
                     s(&sample_texel),
                     s(&sample_slot),
@@ -264,7 +298,7 @@ impl HardShadowPass {
             rec.dispatch(
                 &self.caster_setup,
                 &[
-                    s(&triangles_buf),
+                    s(triangles_buf),
                     s(&faces_buf),
                     s(&planes),
                     s(&pairs),

@@ -195,6 +195,8 @@ pub struct GpuLightFace {
 pub struct GpuCasterPlanes {
     pub support: [f32; 4],
     pub edges: [[f32; 4]; 3],
+    /// +1 or -1 per edge (see `CasterPlanes` in hard_common.glsl).
+    pub side: [f32; 4],
 }
 
 /// `CasterFace`.
@@ -209,5 +211,5 @@ pub struct GpuCasterFace {
 
 const _: () = assert!(std::mem::size_of::<HardPush>() == 96);
 const _: () = assert!(std::mem::size_of::<GpuLightFace>() == 128);
-const _: () = assert!(std::mem::size_of::<GpuCasterPlanes>() == 64);
+const _: () = assert!(std::mem::size_of::<GpuCasterPlanes>() == 80);
 const _: () = assert!(std::mem::size_of::<GpuCasterFace>() == 64);
