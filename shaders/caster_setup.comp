@@ -7,8 +7,8 @@
 #include "hard_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 
-layout(set = 0, binding = 0) readonly buffer Triangles { GpuTriangle triangles[]; };
-layout(set = 0, binding = 1) readonly buffer Faces { LightFace faces[]; };
+layout(set = 0, binding = 0) uniform usamplerBuffer triangles_tb; // GpuTriangle: 3 texels
+layout(set = 0, binding = 1) uniform Faces { LightFace faces[6]; }; // read alike: a uniform buffer
 layout(set = 0, binding = 2) writeonly buffer Planes { CasterPlanes planes[]; };
 layout(set = 0, binding = 3) writeonly buffer Pairs { CasterFace pairs[]; };
 layout(set = 0, binding = 4) buffer Counters { uint counters[]; };
@@ -40,12 +40,30 @@ void clip(vec4 plane, bool ortho) {
     poly_n = n;
 }
 
+// Folds one polygon vertex (face coordinates) into the depth minimum and
+// the texel-space bounds (cpu::casters::caster_face).
+void accumulate(vec3 p, bool point, float z_eps, vec4 window, inout float z_min, inout vec2 lo,
+                inout vec2 hi, inout bool touches_light) {
+    z_min = min(z_min, p.z);
+    if (point && !(p.z > z_eps)) {
+        touches_light = true;
+        return;
+    }
+    vec2 pr = point ? p.xy / p.z : p.xy;
+    vec2 tt = vec2((pr.x - window.x) * window.z, (pr.y - window.y) * window.w);
+    lo = min(lo, tt);
+    hi = max(hi, tt);
+}
+
 void main() {
     uint i = linear_invocation();
     if (i >= pc.sizes.y) {
         return;
     }
-    GpuTriangle t = triangles[i];
+    GpuTriangle t;
+    t.v0_flags = uintBitsToFloat(texelFetch(triangles_tb, int(3u * i)));
+    t.v1_mesh = uintBitsToFloat(texelFetch(triangles_tb, int(3u * i + 1u)));
+    t.v2_pad = uintBitsToFloat(texelFetch(triangles_tb, int(3u * i + 2u)));
     bool closed = (triangle_flags(t) & TRIANGLE_CLOSED) != 0u;
     vec3 o = pc.origin.xyz;
     // Camera-relative vertices; every normal is a cross product with one
@@ -113,48 +131,69 @@ void main() {
         for (int k = 0; k < 3; k++) {
             vec3 d = q[k];
             tri[k] = vec3(dot(d, r), dot(d, u), dot(d, w));
-            poly[k] = tri[k];
         }
-        poly_n = 3;
         float x0 = lf.window.x, y0 = lf.window.y;
         float x1 = x0 + float(res) / lf.window.z;
         float y1 = y0 + float(res) / lf.window.w;
-        if (point) {
-            clip(vec4(0, 0, 1, 0), false);
-            if (poly_n > 0) clip(vec4(1, 0, -x0, 0), false);
-            if (poly_n > 0) clip(vec4(-1, 0, x1, 0), false);
-            if (poly_n > 0) clip(vec4(0, 1, -y0, 0), false);
-            if (poly_n > 0) clip(vec4(0, -1, y1, 0), false);
-        } else {
-            clip(vec4(1, 0, -x0, 0), true);
-            if (poly_n > 0) clip(vec4(-1, 0, x1, 0), true);
-            if (poly_n > 0) clip(vec4(0, 1, -y0, 0), true);
-            if (poly_n > 0) clip(vec4(0, -1, y1, 0), true);
+        // The window pyramid's planes, evaluated exactly as clip() does.
+        vec4 wplanes[5] = vec4[5](vec4(1, 0, -x0, 0), vec4(-1, 0, x1, 0), vec4(0, 1, -y0, 0),
+                                  vec4(0, -1, y1, 0), vec4(0, 0, 1, 0));
+        int nplanes = point ? 5 : 4;
+        // Quick accept / reject: a triangle wholly inside needs no clipping
+        // (clip() would return it unchanged), one wholly outside a plane is
+        // empty there. Most triangles take one of these paths; private
+        // arrays with dynamic indices are slow on lavapipe.
+        bool all_in = true;
+        bool rejected = false;
+        for (int j = 0; j < 5; j++) {
+            if (j >= nplanes) {
+                break;
+            }
+            vec4 pl = wplanes[j];
+            float d0 = point ? dot(pl.xyz, tri[0]) : pl.x * tri[0].x + pl.y * tri[0].y + pl.z;
+            float d1 = point ? dot(pl.xyz, tri[1]) : pl.x * tri[1].x + pl.y * tri[1].y + pl.z;
+            float d2 = point ? dot(pl.xyz, tri[2]) : pl.x * tri[2].x + pl.y * tri[2].y + pl.z;
+            rejected = rejected || (d0 < 0.0 && d1 < 0.0 && d2 < 0.0);
+            all_in = all_in && d0 >= 0.0 && d1 >= 0.0 && d2 >= 0.0;
         }
-        if (poly_n == 0) {
+        if (rejected) {
             continue;
-        }
-        float z_min = 1.0 / 0.0;
-        for (int k = 0; k < poly_n; k++) {
-            z_min = min(z_min, poly[k].z);
         }
         float z_far = lf.far.x;
-        if (z_min > z_far * (1.0 + 1e-5) + 1e-30) {
-            continue;
-        }
         float z_eps = z_far * 1e-6;
+        float z_min = 1.0 / 0.0;
         vec2 lo = vec2(1.0 / 0.0), hi = vec2(-1.0 / 0.0);
         bool touches_light = false;
-        for (int k = 0; k < poly_n; k++) {
-            vec3 p = poly[k];
-            if (point && !(p.z > z_eps)) {
-                touches_light = true;
+        if (all_in) {
+            for (int k = 0; k < 3; k++) {
+                accumulate(tri[k], point, z_eps, lf.window, z_min, lo, hi, touches_light);
+            }
+        } else {
+            for (int k = 0; k < 3; k++) {
+                poly[k] = tri[k];
+            }
+            poly_n = 3;
+            if (point) {
+                clip(vec4(0, 0, 1, 0), false);
+                if (poly_n > 0) clip(vec4(1, 0, -x0, 0), false);
+                if (poly_n > 0) clip(vec4(-1, 0, x1, 0), false);
+                if (poly_n > 0) clip(vec4(0, 1, -y0, 0), false);
+                if (poly_n > 0) clip(vec4(0, -1, y1, 0), false);
+            } else {
+                clip(vec4(1, 0, -x0, 0), true);
+                if (poly_n > 0) clip(vec4(-1, 0, x1, 0), true);
+                if (poly_n > 0) clip(vec4(0, 1, -y0, 0), true);
+                if (poly_n > 0) clip(vec4(0, -1, y1, 0), true);
+            }
+            if (poly_n == 0) {
                 continue;
             }
-            vec2 pr = point ? p.xy / p.z : p.xy;
-            vec2 tt = vec2((pr.x - x0) * lf.window.z, (pr.y - y0) * lf.window.w);
-            lo = min(lo, tt);
-            hi = max(hi, tt);
+            for (int k = 0; k < poly_n; k++) {
+                accumulate(poly[k], point, z_eps, lf.window, z_min, lo, hi, touches_light);
+            }
+        }
+        if (z_min > z_far * (1.0 + 1e-5) + 1e-30) {
+            continue;
         }
         uvec4 rect;
         if (touches_light || any(isinf(lo)) || any(isinf(hi)) || any(isnan(lo)) || any(isnan(hi))) {

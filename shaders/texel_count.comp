@@ -7,7 +7,7 @@
 layout(local_size_x = WORKGROUP_1D) in;
 
 layout(set = 0, binding = 0) readonly buffer Samples { GpuViewSample samples[]; };
-layout(set = 0, binding = 1) readonly buffer Faces { LightFace faces[]; };
+layout(set = 0, binding = 1) uniform Faces { LightFace faces[6]; }; // read alike: a uniform buffer
 layout(set = 0, binding = 2) buffer Counts { uint counts[]; };
 layout(set = 0, binding = 3) writeonly buffer SampleTexel { uint sample_texel[]; };
 layout(set = 0, binding = 4) writeonly buffer SampleLocal { uint sample_local[]; };

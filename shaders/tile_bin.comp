@@ -13,6 +13,7 @@ layout(set = 0, binding = 1) readonly buffer Counters { uint counters[]; };
 layout(set = 0, binding = 2) buffer TileCounts { uint tile_counts[]; }; // counts, or cursors when scattering
 layout(set = 0, binding = 3) readonly buffer TileOffsets { uint tile_offsets[]; };
 layout(set = 0, binding = 4) writeonly buffer TilePairs { uint tile_pairs[]; };
+layout(set = 0, binding = 5) readonly buffer TileMaxLen { uint tile_max_len[]; }; // 0: the tile has no view samples
 
 void main() {
     uint i = linear_invocation();
@@ -34,6 +35,9 @@ void main() {
                 continue;
             }
             uint tile = base + ty * pc.more.y + tx;
+            if (tile_max_len[tile] == 0u) {
+                continue; // no view sample in this tile: nothing to shadow
+            }
             if (SCATTER == 0u) {
                 atomicAdd(tile_counts[tile], 1u);
             } else {

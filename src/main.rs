@@ -99,6 +99,10 @@ struct RenderArgs {
     /// Do not show progress bars.
     #[arg(long)]
     quiet: bool,
+    /// Render the frame this many times and report the last one (the first
+    /// frame pays for pipeline compilation; later ones show warm timings).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    repeat: u32,
 }
 
 impl RenderArgs {
@@ -204,12 +208,13 @@ fn run(cli: Cli) -> Result<()> {
                 device: args.device.clone(),
                 ..Default::default()
             })?;
-            let frame = engine.render(
-                &desc,
-                FrameOptions {
-                    progress: !args.quiet,
-                },
-            )?;
+            let options = FrameOptions {
+                progress: !args.quiet,
+            };
+            let mut frame = engine.render(&desc, options)?;
+            for _ in 1..args.repeat {
+                frame = engine.render(&desc, options)?;
+            }
             write_outputs(&args, &frame)?;
             report(&desc, &frame, &args);
         }

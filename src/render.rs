@@ -379,7 +379,12 @@ impl Engine {
         if !gpu_tris.is_empty() {
             self.ctx.upload_staged(&tri_buf, 0, &gpu_tris)?;
         }
-        let oracle = Oracle::new(&triangles, eye);
+        // The oracle is only needed for lights the GPU cannot do yet.
+        let oracle = desc
+            .lights
+            .iter()
+            .any(|l| light_view(l, eye).is_none())
+            .then(|| Oracle::new(&triangles, eye));
 
         // 2-5. Per light: lists, casters, rasterization, occlusion, resolve.
         let mut light_samples = Vec::new();
@@ -390,12 +395,23 @@ impl Engine {
             let samples = light.light_samples();
             match light_view(light, eye) {
                 Some(lv) => {
-                    let r = self.hard_shadows_gpu(
-                        &gpu_view,
-                        &gpu_tris,
+                    // The view samples stay on the GPU: no upload between passes.
+                    let t_hard = Instant::now();
+                    let out = self.hard.run_on(
+                        &self.ctx,
+                        &view_buf,
+                        n,
+                        &tri_buf,
+                        gpu_tris.len(),
                         &lv,
                         desc.shadows.light_texels,
                     )?;
+                    let mut stats = hard_stats(&out, desc.shadows.light_texels, lv.face_count());
+                    stats["wall_ms"] = serde_json::json!(t_hard.elapsed().as_secs_f64() * 1e3);
+                    let r = HardShadowResult {
+                        lit: out.lit,
+                        stats,
+                    };
                     visibility.push(
                         r.lit
                             .iter()
@@ -412,6 +428,7 @@ impl Engine {
                         &format!("oracle light {k}"),
                         options.progress,
                     );
+                    let oracle = oracle.as_ref().expect("built for area lights");
                     let vis = oracle.visibility(&view, &samples, pb.as_ref());
                     if let Some(pb) = pb {
                         pb.finish_and_clear();

@@ -24,10 +24,13 @@ use crate::gpu::shared::{
     counter, GpuTriangle, GpuViewSample, HardPush, LIGHT_KIND_DIRECTIONAL, LIGHT_KIND_POINT,
 };
 use crate::vulkan::{
-    Barrier, Binding, Buffer, BufferDesc, CommandRecorder, ComputePipeline, ComputePipelineDesc,
-    DescriptorKind, GpuContext, PassTiming, Profiler,
+    vk, Barrier, Binding, Buffer, BufferDesc, CommandRecorder, ComputePipeline,
+    ComputePipelineDesc, DescriptorKind, GpuContext, PassTiming, Profiler,
 };
 use crate::{Error, Result};
+
+/// Texel format the hot gathers read (floats travel as bits).
+const RGBA32UI: vk::Format = vk::Format::R32G32B32A32_UINT;
 
 /// Workgroup size of the 1D passes.
 const WG: u32 = 64;
@@ -86,6 +89,8 @@ impl HardShadowPass {
     /// Builds every pipeline.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let sb = DescriptorKind::StorageBuffer;
+        let tb = DescriptorKind::UniformTexelBuffer;
+        let ub = DescriptorKind::UniformBuffer;
         let push = std::mem::size_of::<HardPush>() as u32;
         let make = |name: &str, spirv: &[u32], n: usize, spec: &[(u32, u32)]| {
             ctx.create_compute_pipeline(&ComputePipelineDesc {
@@ -100,13 +105,31 @@ impl HardShadowPass {
         Ok(HardShadowPass {
             light_fit: make("light_fit", shaders::LIGHT_FIT, 2, &wg)?,
             light_fit_finalize: make("light_fit_finalize", shaders::LIGHT_FIT_FINALIZE, 2, &[])?,
-            texel_count: make("texel_count", shaders::TEXEL_COUNT, 6, &wg)?,
+            texel_count: ctx.create_compute_pipeline(&ComputePipelineDesc {
+                name: "texel_count",
+                spirv: shaders::TEXEL_COUNT,
+                bindings: &[sb, ub, sb, sb, sb, sb],
+                push_constant_bytes: push,
+                specialization: &[],
+            })?,
             texel_scatter: make("texel_scatter", shaders::TEXEL_SCATTER, 5, &wg)?,
-            caster_setup: make("caster_setup", shaders::CASTER_SETUP, 5, &wg)?,
-            tile_count: make("tile_bin_count", shaders::TILE_BIN, 5, &[(1, 0)])?,
-            tile_scatter: make("tile_bin_scatter", shaders::TILE_BIN, 5, &[(1, 1)])?,
+            caster_setup: ctx.create_compute_pipeline(&ComputePipelineDesc {
+                name: "caster_setup",
+                spirv: shaders::CASTER_SETUP,
+                bindings: &[tb, ub, sb, sb, sb],
+                push_constant_bytes: push,
+                specialization: &[],
+            })?,
+            tile_count: make("tile_bin_count", shaders::TILE_BIN, 6, &[(1, 0)])?,
+            tile_scatter: make("tile_bin_scatter", shaders::TILE_BIN, 6, &[(1, 1)])?,
             tile_units: make("tile_units", shaders::TILE_UNITS, 3, &wg)?,
-            occlusion: make("occlusion", shaders::OCCLUSION, 10, &[])?,
+            occlusion: ctx.create_compute_pipeline(&ComputePipelineDesc {
+                name: "occlusion",
+                spirv: shaders::OCCLUSION,
+                bindings: &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb],
+                push_constant_bytes: push,
+                specialization: &[],
+            })?,
             resolve: make("resolve", shaders::RESOLVE, 4, &wg)?,
             scan: ScanPass::new(ctx)?,
         })
@@ -215,7 +238,10 @@ impl HardShadowPass {
             ctx.create_buffer(BufferDesc::storage(name, size))
         };
         let fit = buffer("light_fit_keys", 4 * 8 * 6)?;
-        let faces_buf = buffer("light_faces", 128 * 6)?;
+        // Read alike by every invocation: bound as a uniform buffer where read.
+        let mut faces_desc = BufferDesc::storage("light_faces", 128 * 6);
+        faces_desc.usage |= vk::BufferUsageFlags::UNIFORM_BUFFER;
+        let faces_buf = ctx.create_buffer(faces_desc)?;
         let counts = buffer("texel_counts", 4 * texels)?;
         let offsets = buffer("texel_offsets", 4 * (texels + 1))?;
         let sample_texel = buffer("sample_texel", 4 * n as u64)?;
@@ -240,6 +266,9 @@ impl HardShadowPass {
         ctx.upload_staged(&fit, 0, &fit_init)?;
 
         // ---- Submission 1: lists and caster setup, tile counts.
+        let mut walls = std::env::var("AFS_PROFILE_WALL")
+            .is_ok_and(|v| v == "1")
+            .then(Vec::new);
         let mut prof1 = Profiler::new(ctx, 16)?;
         let mut rec = ctx.begin()?;
         rec.fill_buffer(counts.whole(), 0)?;
@@ -247,7 +276,7 @@ impl HardShadowPass {
         rec.fill_buffer(tile_counts.whole(), 0)?;
         rec.fill_buffer(tile_max_len.whole(), 0)?;
         rec.barrier(Barrier::TransferToCompute);
-        timed(&mut prof1, &mut rec, "light_fit", |rec| {
+        timed(ctx, &mut prof1, &mut rec, &mut walls, "light_fit", |rec| {
             rec.dispatch(&self.light_fit, &[s(samples_buf), s(&fit)], pc, groups(n))?;
             rec.barrier(Barrier::ComputeToCompute);
             rec.dispatch(
@@ -259,79 +288,108 @@ impl HardShadowPass {
             rec.barrier(Barrier::ComputeToCompute);
             Ok(())
         })?;
-        timed(&mut prof1, &mut rec, "texel_count", |rec| {
-            rec.dispatch(
-                &self.texel_count,
-                &[
-                    s(samples_buf),
-                    s(&faces_buf),
-                    s(&counts),
-                    s(&sample_texel),
-                    s(&sample_slot),
-                    s(&tile_max_len),
-                ],
-                pc,
-                groups(n),
-            )
-        })?;
+        timed(
+            ctx,
+            &mut prof1,
+            &mut rec,
+            &mut walls,
+            "texel_count",
+            |rec| {
+                rec.dispatch(
+                    &self.texel_count,
+                    &[
+                        s(samples_buf),
+                        Binding::uniform(&faces_buf),
+                        s(&counts),
+                        s(&sample_texel),
+                        s(&sample_slot),
+                        s(&tile_max_len),
+                    ],
+                    pc,
+                    groups(n),
+                )
+            },
+        )?;
         let scan = &mut self.scan;
-        timed(&mut prof1, &mut rec, "texel_scan", |rec| {
+        timed(ctx, &mut prof1, &mut rec, &mut walls, "texel_scan", |rec| {
             scan.record(rec, counts.whole(), offsets.whole(), texels as u32)?;
             rec.barrier(Barrier::ComputeToCompute);
             Ok(())
         })?;
-        timed(&mut prof1, &mut rec, "texel_scatter", |rec| {
-            rec.dispatch(
-                &self.texel_scatter,
-                &[
-                    s(samples_buf),
-                    s(&offsets),
-                    s(&sample_texel),
-                    s(&sample_slot),
-                    s(&list_samples),
-                ],
-                pc,
-                groups(n),
-            )
-        })?;
-        timed(&mut prof1, &mut rec, "caster_setup", |rec| {
-            rec.dispatch(
-                &self.caster_setup,
-                &[
-                    s(triangles_buf),
-                    s(&faces_buf),
-                    s(&planes),
-                    s(&pairs),
-                    s(&counters),
-                ],
-                pc,
-                groups(nt),
-            )?;
-            rec.barrier(Barrier::ComputeToCompute);
-            Ok(())
-        })?;
-        timed(&mut prof1, &mut rec, "tile_bin_count", |rec| {
-            rec.dispatch(
-                &self.tile_count,
-                &[
-                    s(&pairs),
-                    s(&counters),
-                    s(&tile_counts),
-                    s(&tile_offsets),
-                    s(&tile_offsets),
-                ],
-                pc,
-                groups(pair_capacity),
-            )?;
-            rec.barrier(Barrier::ComputeToCompute);
-            rec.dispatch(
-                &self.tile_units,
-                &[s(&tile_counts), s(&tile_max_len), s(&tile_units)],
-                pc,
-                groups(tiles),
-            )
-        })?;
-        timed(&mut prof1, &mut rec, "tile_scan", |rec| {
+        timed(
+            ctx,
+            &mut prof1,
+            &mut rec,
+            &mut walls,
+            "texel_scatter",
+            |rec| {
+                rec.dispatch(
+                    &self.texel_scatter,
+                    &[
+                        s(samples_buf),
+                        s(&offsets),
+                        s(&sample_texel),
+                        s(&sample_slot),
+                        s(&list_samples),
+                    ],
+                    pc,
+                    groups(n),
+                )
+            },
+        )?;
+        timed(
+            ctx,
+            &mut prof1,
+            &mut rec,
+            &mut walls,
+            "caster_setup",
+            |rec| {
+                rec.dispatch(
+                    &self.caster_setup,
+                    &[
+                        Binding::uniform_texel(triangles_buf, RGBA32UI),
+                        Binding::uniform(&faces_buf),
+                        s(&planes),
+                        s(&pairs),
+                        s(&counters),
+                    ],
+                    pc,
+                    groups(nt),
+                )?;
+                rec.barrier(Barrier::ComputeToCompute);
+                Ok(())
+            },
+        )?;
+        timed(
+            ctx,
+            &mut prof1,
+            &mut rec,
+            &mut walls,
+            "tile_bin_count",
+            |rec| {
+                rec.dispatch(
+                    &self.tile_count,
+                    &[
+                        s(&pairs),
+                        s(&counters),
+                        s(&tile_counts),
+                        s(&tile_offsets),
+                        s(&tile_offsets),
+                        s(&tile_max_len),
+                    ],
+                    pc,
+                    groups(pair_capacity),
+                )?;
+                rec.barrier(Barrier::ComputeToCompute);
+                rec.dispatch(
+                    &self.tile_units,
+                    &[s(&tile_counts), s(&tile_max_len), s(&tile_units)],
+                    pc,
+                    groups(tiles),
+                )
+            },
+        )?;
+        timed(ctx, &mut prof1, &mut rec, &mut walls, "tile_scan", |rec| {
             scan.record(rec, tile_counts.whole(), tile_offsets.whole(), tiles)?;
             scan.record(rec, tile_units.whole(), unit_offsets.whole(), tiles)?;
             rec.barrier(Barrier::ComputeToHost);
@@ -356,33 +414,41 @@ impl HardShadowPass {
         rec.fill_buffer(tile_counts.whole(), 0)?;
         rec.fill_buffer(shadowed.whole(), 0)?;
         rec.barrier(Barrier::TransferToCompute);
-        timed(&mut prof2, &mut rec, "tile_bin_scatter", |rec| {
-            rec.dispatch(
-                &self.tile_scatter,
-                &[
-                    s(&pairs),
-                    s(&counters),
-                    s(&tile_counts),
-                    s(&tile_offsets),
-                    s(&tile_pairs),
-                ],
-                pc,
-                groups(pair_capacity),
-            )?;
-            rec.barrier(Barrier::ComputeToCompute);
-            Ok(())
-        })?;
-        timed(&mut prof2, &mut rec, "occlusion", |rec| {
+        timed(
+            ctx,
+            &mut prof2,
+            &mut rec,
+            &mut walls,
+            "tile_bin_scatter",
+            |rec| {
+                rec.dispatch(
+                    &self.tile_scatter,
+                    &[
+                        s(&pairs),
+                        s(&counters),
+                        s(&tile_counts),
+                        s(&tile_offsets),
+                        s(&tile_pairs),
+                        s(&tile_max_len),
+                    ],
+                    pc,
+                    groups(pair_capacity),
+                )?;
+                rec.barrier(Barrier::ComputeToCompute);
+                Ok(())
+            },
+        )?;
+        timed(ctx, &mut prof2, &mut rec, &mut walls, "occlusion", |rec| {
             rec.dispatch(
                 &self.occlusion,
                 &[
-                    s(&pairs),
-                    s(&planes),
+                    Binding::uniform_texel(&pairs, RGBA32UI),
+                    Binding::uniform_texel(&planes, RGBA32UI),
                     s(&tile_offsets),
-                    s(&tile_pairs),
+                    Binding::uniform_texel(&tile_pairs, vk::Format::R32_UINT),
                     s(&counts),
                     s(&offsets),
-                    s(&list_samples),
+                    Binding::uniform_texel(&list_samples, RGBA32UI),
                     s(&shadowed),
                     s(&counters),
                     s(&unit_offsets),
@@ -393,7 +459,7 @@ impl HardShadowPass {
             rec.barrier(Barrier::ComputeToCompute);
             Ok(())
         })?;
-        timed(&mut prof2, &mut rec, "resolve", |rec| {
+        timed(ctx, &mut prof2, &mut rec, &mut walls, "resolve", |rec| {
             rec.dispatch(
                 &self.resolve,
                 &[s(&sample_texel), s(&sample_slot), s(&shadowed), s(&result)],
@@ -409,8 +475,14 @@ impl HardShadowPass {
         let result: Vec<u32> = ctx.read_buffer_staged(&result, 0, n as usize)?;
         let c: Vec<u32> = ctx.read_buffer_staged(&counters, 0, counter::COUNT)?;
         let list_lengths: Vec<u32> = ctx.read_buffer_staged(&counts, 0, texels as usize)?;
-        let mut timings = prof1.results()?;
-        timings.extend(prof2.results()?);
+        let timings = match walls {
+            Some(w) => w,
+            None => {
+                let mut t = prof1.results()?;
+                t.extend(prof2.results()?);
+                t
+            }
+        };
         let mut counters_out = [0u32; counter::COUNT];
         counters_out.copy_from_slice(&c);
         Ok(HardShadowOutput {
@@ -432,15 +504,35 @@ fn s(b: &Buffer) -> Binding<'_> {
 
 /// Records `f` between the profiler's timestamps for `name`.
 fn timed(
+    ctx: &GpuContext,
     prof: &mut Profiler,
     rec: &mut CommandRecorder,
+    walls: &mut Option<Vec<PassTiming>>,
     name: &str,
     f: impl FnOnce(&mut CommandRecorder) -> Result<()>,
 ) -> Result<()> {
-    let scope = prof.begin(rec, name)?;
-    f(rec)?;
-    prof.end(rec, scope);
-    Ok(())
+    match walls {
+        // Wall-clock profiling (AFS_PROFILE_WALL=1): every pass is its own
+        // submission, timed on the host. Slower overall, but it does not
+        // depend on the device's timestamps.
+        Some(list) => {
+            let t = std::time::Instant::now();
+            f(rec)?;
+            let done = std::mem::replace(rec, ctx.begin()?);
+            ctx.submit_and_wait(done)?;
+            list.push(PassTiming {
+                name: name.to_string(),
+                ms: Some(t.elapsed().as_secs_f64() * 1e3),
+            });
+            Ok(())
+        }
+        None => {
+            let scope = prof.begin(rec, name)?;
+            f(rec)?;
+            prof.end(rec, scope);
+            Ok(())
+        }
+    }
 }
 
 /// Camera-relative GPU view samples and triangles from CPU data.
