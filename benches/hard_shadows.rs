@@ -14,7 +14,11 @@ fn hard_shadows(c: &mut Criterion) {
     let mut engine = Engine::new(&ContextOptions::default()).expect("a Vulkan device");
     let mut g = c.benchmark_group("hard_shadows_512");
     g.sample_size(10);
-    for spec in ["builtin:demo", "builtin:torus_knot:10000", "builtin:torus_knot:100000"] {
+    for spec in [
+        "builtin:demo",
+        "builtin:torus_knot:10000",
+        "builtin:torus_knot:100000",
+    ] {
         let mut desc = file::load(spec).expect("built-in scene");
         desc.camera.width = 512;
         desc.camera.height = 512;
@@ -28,9 +32,15 @@ fn hard_shadows(c: &mut Criterion) {
             color: [1.0; 3],
             intensity: 1.0,
         }];
-        engine.render(&desc, FrameOptions::default()).expect("warm-up frame");
+        engine
+            .render(&desc, FrameOptions::default())
+            .expect("warm-up frame");
         g.bench_function(spec, |b| {
-            b.iter(|| engine.render(&desc, FrameOptions::default()).expect("frame"))
+            b.iter(|| {
+                engine
+                    .render(&desc, FrameOptions::default())
+                    .expect("frame")
+            })
         });
     }
     g.finish();
