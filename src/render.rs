@@ -105,6 +105,32 @@ pub fn make_dump(
     }
 }
 
+/// One light's visibility from the oracle, with the "evaluated" flags (a
+/// sample facing away from the whole light is decided without shadow rays).
+fn oracle_light(
+    oracle: &Oracle,
+    view: &ViewSamples,
+    samples: &LightSamples,
+    k: usize,
+    progress: bool,
+) -> (Vec<f32>, Vec<bool>) {
+    let pb = progress_bar(
+        view.height as u64,
+        &format!("oracle light {k} ({} samples)", samples.len()),
+        progress,
+    );
+    let vis = oracle.visibility(view, samples, pb.as_ref());
+    if let Some(pb) = pb {
+        pb.finish_and_clear();
+    }
+    let evaluated = view
+        .samples
+        .iter()
+        .map(|s| s.is_some_and(|s| faces_light(s.position, s.normal, samples)))
+        .collect();
+    (vis, evaluated)
+}
+
 /// Renders a frame with the CPU oracle: primary rays for the view samples,
 /// shadow rays for visibility. The reference every GPU frame is compared to.
 pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Result<Frame> {
@@ -126,22 +152,9 @@ pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Resul
     for (k, light) in desc.lights.iter().enumerate() {
         let samples = light.light_samples();
         let t = Instant::now();
-        let pb = progress_bar(
-            view.height as u64,
-            &format!("oracle light {k} ({} samples)", samples.len()),
-            options.progress,
-        );
-        let vis = oracle.visibility(&view, &samples, pb.as_ref());
-        if let Some(pb) = pb {
-            pb.finish_and_clear();
-        }
+        let (vis, ev) = oracle_light(&oracle, &view, &samples, k, options.progress);
         shadow_ms.push(t.elapsed().as_secs_f64() * 1e3);
-        evaluated.push(
-            view.samples
-                .iter()
-                .map(|s| s.is_some_and(|s| faces_light(s.position, s.normal, &samples)))
-                .collect(),
-        );
+        evaluated.push(ev);
         visibility.push(vis);
         light_samples.push(samples);
     }
@@ -423,22 +436,9 @@ impl Engine {
                 }
                 None => {
                     let t = Instant::now();
-                    let pb = progress_bar(
-                        view.height as u64,
-                        &format!("oracle light {k}"),
-                        options.progress,
-                    );
                     let oracle = oracle.as_ref().expect("built for area lights");
-                    let vis = oracle.visibility(&view, &samples, pb.as_ref());
-                    if let Some(pb) = pb {
-                        pb.finish_and_clear();
-                    }
-                    evaluated.push(
-                        view.samples
-                            .iter()
-                            .map(|s| s.is_some_and(|s| faces_light(s.position, s.normal, &samples)))
-                            .collect(),
-                    );
+                    let (vis, ev) = oracle_light(oracle, &view, &samples, k, options.progress);
+                    evaluated.push(ev);
                     visibility.push(vis);
                     light_stats.push(serde_json::json!({
                         "light": k,
