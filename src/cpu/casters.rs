@@ -142,20 +142,26 @@ pub enum Skip {
     FrontFacingClosed,
 }
 
-/// Clips the polygon `poly` (face coordinates X, Y, z) by `a·X + b·Y + c·z ≥ 0`.
-fn clip(poly: &[Vec3], plane: Vec3) -> Vec<Vec3> {
+/// Clips the polygon `poly` (face coordinates X, Y, z) to `a·X + b·Y + c·w ≥ 0`
+/// where w = z (perspective) or w = 1 (`ortho`), as `clip()` in caster_setup.comp.
+fn clip(poly: &[Vec3], plane: Vec3, ortho: bool) -> Vec<Vec3> {
+    let d = |p: Vec3| {
+        if ortho {
+            plane.x * p.x + plane.y * p.y + plane.z
+        } else {
+            plane.dot(p)
+        }
+    };
     let mut out = Vec::with_capacity(poly.len() + 1);
     for i in 0..poly.len() {
         let p = poly[i];
         let q = poly[(i + 1) % poly.len()];
-        let dp = plane.dot(p);
-        let dq = plane.dot(q);
+        let (dp, dq) = (d(p), d(q));
         if dp >= 0.0 {
             out.push(p);
         }
         if (dp >= 0.0) != (dq >= 0.0) {
-            let t = dp / (dp - dq);
-            out.push(p + (q - p) * t);
+            out.push(p + (q - p) * (dp / (dp - dq)));
         }
     }
     out
@@ -184,32 +190,20 @@ pub fn caster_face(
     let x1 = window.x0 + resolution as f32 / window.sx;
     let y1 = window.y0 + resolution as f32 / window.sy;
     let point = matches!(light, LightView::Point { .. });
+    // Perspective: z >= 0 and x0·z <= X <= x1·z, y0·z <= Y <= y1·z (the
+    // window pyramid); orthographic: the window's four sides.
     let mut poly = tri.to_vec();
-    if point {
-        // z >= 0 and x0·z <= X <= x1·z, y0·z <= Y <= y1·z: the window pyramid.
-        for plane in [
-            Vec3::new(0.0, 0.0, 1.0),
-            Vec3::new(1.0, 0.0, -window.x0),
-            Vec3::new(-1.0, 0.0, x1),
-            Vec3::new(0.0, 1.0, -window.y0),
-            Vec3::new(0.0, -1.0, y1),
-        ] {
-            poly = clip(&poly, plane);
-            if poly.is_empty() {
-                return None;
-            }
-        }
-    } else {
-        for plane in [
-            Vec3::new(1.0, 0.0, -window.x0),
-            Vec3::new(-1.0, 0.0, x1),
-            Vec3::new(0.0, 1.0, -window.y0),
-            Vec3::new(0.0, -1.0, y1),
-        ] {
-            poly = clip_ortho(&poly, plane);
-            if poly.is_empty() {
-                return None;
-            }
+    let sides = [
+        Vec3::new(1.0, 0.0, -window.x0),
+        Vec3::new(-1.0, 0.0, x1),
+        Vec3::new(0.0, 1.0, -window.y0),
+        Vec3::new(0.0, -1.0, y1),
+    ];
+    let near = point.then_some(Vec3::new(0.0, 0.0, 1.0));
+    for plane in near.into_iter().chain(sides) {
+        poly = clip(&poly, plane, !point);
+        if poly.is_empty() {
+            return None;
         }
     }
     let z_min = poly.iter().map(|p| p.z).fold(f32::INFINITY, f32::min);
@@ -278,24 +272,6 @@ pub fn caster_face(
         Some(e)
     })();
     Some((rect, edges))
-}
-
-/// Orthographic clipping of face-space points by `a·X + b·Y + c ≥ 0` (plane.z = c).
-fn clip_ortho(poly: &[Vec3], plane: Vec3) -> Vec<Vec3> {
-    let d = |p: Vec3| plane.x * p.x + plane.y * p.y + plane.z;
-    let mut out = Vec::with_capacity(poly.len() + 1);
-    for i in 0..poly.len() {
-        let p = poly[i];
-        let q = poly[(i + 1) % poly.len()];
-        let (dp, dq) = (d(p), d(q));
-        if dp >= 0.0 {
-            out.push(p);
-        }
-        if (dp >= 0.0) != (dq >= 0.0) {
-            out.push(p + (q - p) * (dp / (dp - dq)));
-        }
-    }
-    out
 }
 
 /// Whether the texel-space square [x0, x1] × [y0, y1] may overlap a triangle

@@ -92,45 +92,46 @@ impl HardShadowPass {
         let tb = DescriptorKind::UniformTexelBuffer;
         let ub = DescriptorKind::UniformBuffer;
         let push = std::mem::size_of::<HardPush>() as u32;
-        let make = |name: &str, spirv: &[u32], n: usize, spec: &[(u32, u32)]| {
+        let make = |name: &str, spirv: &[u32], bindings: &[DescriptorKind], spec: &[(u32, u32)]| {
             ctx.create_compute_pipeline(&ComputePipelineDesc {
                 name,
                 spirv,
-                bindings: &vec![sb; n],
+                bindings,
                 push_constant_bytes: push,
                 specialization: spec,
             })
         };
-        let wg: [(u32, u32); 0] = [];
         Ok(HardShadowPass {
-            light_fit: make("light_fit", shaders::LIGHT_FIT, 2, &wg)?,
-            light_fit_finalize: make("light_fit_finalize", shaders::LIGHT_FIT_FINALIZE, 2, &[])?,
-            texel_count: ctx.create_compute_pipeline(&ComputePipelineDesc {
-                name: "texel_count",
-                spirv: shaders::TEXEL_COUNT,
-                bindings: &[sb, ub, sb, sb, sb, sb],
-                push_constant_bytes: push,
-                specialization: &[],
-            })?,
-            texel_scatter: make("texel_scatter", shaders::TEXEL_SCATTER, 5, &wg)?,
-            caster_setup: ctx.create_compute_pipeline(&ComputePipelineDesc {
-                name: "caster_setup",
-                spirv: shaders::CASTER_SETUP,
-                bindings: &[tb, ub, sb, sb, sb],
-                push_constant_bytes: push,
-                specialization: &[],
-            })?,
-            tile_count: make("tile_bin_count", shaders::TILE_BIN, 6, &[(1, 0)])?,
-            tile_scatter: make("tile_bin_scatter", shaders::TILE_BIN, 6, &[(1, 1)])?,
-            tile_units: make("tile_units", shaders::TILE_UNITS, 3, &wg)?,
-            occlusion: ctx.create_compute_pipeline(&ComputePipelineDesc {
-                name: "occlusion",
-                spirv: shaders::OCCLUSION,
-                bindings: &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb],
-                push_constant_bytes: push,
-                specialization: &[],
-            })?,
-            resolve: make("resolve", shaders::RESOLVE, 4, &wg)?,
+            light_fit: make("light_fit", shaders::LIGHT_FIT, &[sb; 2], &[])?,
+            light_fit_finalize: make(
+                "light_fit_finalize",
+                shaders::LIGHT_FIT_FINALIZE,
+                &[sb; 2],
+                &[],
+            )?,
+            texel_count: make(
+                "texel_count",
+                shaders::TEXEL_COUNT,
+                &[sb, ub, sb, sb, sb, sb],
+                &[],
+            )?,
+            texel_scatter: make("texel_scatter", shaders::TEXEL_SCATTER, &[sb; 5], &[])?,
+            caster_setup: make(
+                "caster_setup",
+                shaders::CASTER_SETUP,
+                &[tb, ub, sb, sb, sb],
+                &[],
+            )?,
+            tile_count: make("tile_bin_count", shaders::TILE_BIN, &[sb; 6], &[(1, 0)])?,
+            tile_scatter: make("tile_bin_scatter", shaders::TILE_BIN, &[sb; 6], &[(1, 1)])?,
+            tile_units: make("tile_units", shaders::TILE_UNITS, &[sb; 3], &[])?,
+            occlusion: make(
+                "occlusion",
+                shaders::OCCLUSION,
+                &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb],
+                &[],
+            )?,
+            resolve: make("resolve", shaders::RESOLVE, &[sb; 4], &[])?,
             scan: ScanPass::new(ctx)?,
         })
     }

@@ -236,15 +236,7 @@ pub struct GraphicsPipeline {
 impl GraphicsPipeline {
     /// Creates the render pass, layout and pipeline.
     pub fn new(device: &Arc<Device>, desc: &GraphicsPipelineDesc<'_>) -> Result<Self> {
-        let limits = device.limits();
-        if desc.push_constant_bytes > limits.max_push_constants_size
-            || !desc.push_constant_bytes.is_multiple_of(4)
-        {
-            return Err(Error::Vulkan(format!(
-                "pipeline \"{}\": {} bytes of push constants (must be a multiple of 4, at most {})",
-                desc.name, desc.push_constant_bytes, limits.max_push_constants_size
-            )));
-        }
+        super::pipeline::check_push_constants(device, desc.name, desc.push_constant_bytes)?;
         let vertex = ShaderModule::new(device, &format!("{} (vertex)", desc.name), desc.vertex)?;
         let fragment =
             ShaderModule::new(device, &format!("{} (fragment)", desc.name), desc.fragment)?;
@@ -667,23 +659,7 @@ impl CommandRecorder {
                 src.name()
             )));
         }
-        let region = vk::BufferImageCopy {
-            buffer_offset: 0,
-            buffer_row_length: 0,
-            buffer_image_height: 0,
-            image_subresource: vk::ImageSubresourceLayers {
-                aspect_mask: vk::ImageAspectFlags::COLOR,
-                mip_level: 0,
-                base_array_layer: 0,
-                layer_count: 1,
-            },
-            image_offset: vk::Offset3D::default(),
-            image_extent: vk::Extent3D {
-                width,
-                height,
-                depth: 1,
-            },
-        };
+        let region = super::image::whole_color_region([width, height, 1]);
         unsafe {
             self.device().raw().cmd_copy_image_to_buffer(
                 self.raw(),

@@ -154,24 +154,7 @@ impl Image {
     }
 
     fn region(&self) -> vk::BufferImageCopy {
-        let [width, height, depth] = self.desc.extent;
-        vk::BufferImageCopy {
-            buffer_offset: 0,
-            buffer_row_length: 0,
-            buffer_image_height: 0,
-            image_subresource: vk::ImageSubresourceLayers {
-                aspect_mask: vk::ImageAspectFlags::COLOR,
-                mip_level: 0,
-                base_array_layer: 0,
-                layer_count: 1,
-            },
-            image_offset: vk::Offset3D::default(),
-            image_extent: vk::Extent3D {
-                width,
-                height,
-                depth,
-            },
-        }
+        whole_color_region(self.desc.extent)
     }
 
     fn texel_count(&self) -> u64 {
@@ -281,5 +264,28 @@ impl GpuContext {
             )));
         }
         Ok(())
+    }
+}
+
+/// The copy region of a whole single-mip colour image of `extent`, tightly
+/// packed in the buffer from byte 0.
+pub fn whole_color_region(extent: [u32; 3]) -> vk::BufferImageCopy {
+    let [width, height, depth] = extent;
+    vk::BufferImageCopy {
+        buffer_offset: 0,
+        buffer_row_length: 0,
+        buffer_image_height: 0,
+        image_subresource: vk::ImageSubresourceLayers {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            mip_level: 0,
+            base_array_layer: 0,
+            layer_count: 1,
+        },
+        image_offset: vk::Offset3D::default(),
+        image_extent: vk::Extent3D {
+            width,
+            height,
+            depth,
+        },
     }
 }

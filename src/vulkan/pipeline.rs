@@ -131,15 +131,7 @@ pub struct ComputePipeline {
 impl ComputePipeline {
     /// Creates the pipeline (and checks push constants against the limits).
     pub fn new(device: &Arc<Device>, desc: &ComputePipelineDesc<'_>) -> Result<Self> {
-        let limits = device.limits();
-        if desc.push_constant_bytes > limits.max_push_constants_size
-            || !desc.push_constant_bytes.is_multiple_of(4)
-        {
-            return Err(Error::Vulkan(format!(
-                "pipeline \"{}\": {} bytes of push constants (must be a multiple of 4, at most {})",
-                desc.name, desc.push_constant_bytes, limits.max_push_constants_size
-            )));
-        }
+        check_push_constants(device, desc.name, desc.push_constant_bytes)?;
         let module = ShaderModule::new(device, desc.name, desc.spirv)?;
         // Null handles are fine to destroy, so a half-made pipeline drops cleanly.
         let mut pipeline = ComputePipeline {
@@ -276,4 +268,16 @@ impl GpuContext {
         self.check_validation()?;
         Ok(p)
     }
+}
+
+/// Checks a push-constant block size against the device limit (and the
+/// multiple-of-4 rule), naming the pipeline.
+pub(crate) fn check_push_constants(device: &Device, name: &str, bytes: u32) -> Result<()> {
+    let max = device.limits().max_push_constants_size;
+    if bytes > max || !bytes.is_multiple_of(4) {
+        return Err(Error::Vulkan(format!(
+            "pipeline \"{name}\": {bytes} bytes of push constants (must be a multiple of 4, at most {max})"
+        )));
+    }
+    Ok(())
 }
