@@ -30,6 +30,7 @@
 #define COUNTER_RASTERIZED 4
 #define COUNTER_TEXELS_VISITED 5
 #define COUNTER_TESTS 6
+#define COUNTER_CLIP_ITEMS 7
 #define COUNTER_COUNT 8
 
 // Frame-wide parameters (push constants).

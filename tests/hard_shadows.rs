@@ -147,6 +147,24 @@ fn gpu_matches_the_oracle_and_the_twins() {
                 d, 0,
                 "{spec} R={res}: {d} of {n} pixels differ from the oracle"
             );
+            assert_eq!(twin_d, 0, "{spec} R={res}: GPU differs from its twin");
+            // The caster passes (caster_setup + caster_clip) against their twin.
+            let k = &twin.casters;
+            assert_eq!(
+                [
+                    out.counters[counter::DEGENERATE],
+                    out.counters[counter::FRONT_FACING_CLOSED],
+                    out.counters[counter::CULLED],
+                    out.counters[counter::RASTERIZED],
+                ],
+                [
+                    k.degenerate,
+                    k.front_facing_closed,
+                    k.culled_frustum,
+                    k.rasterized,
+                ],
+                "{spec} R={res}: caster counters differ from the twin"
+            );
         }
     }
     ctx.check_validation().unwrap();

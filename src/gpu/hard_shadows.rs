@@ -6,7 +6,8 @@
 //!    view samples that face the light, far plane at the farthest one;
 //! 2. `texel_count`, scan, `texel_scatter`: per-light-texel lists of view samples;
 //! 3. `caster_setup`: casting triangles, their planes and conservative
-//!    per-face rectangles and edges;
+//!    per-face rectangles and edges; `caster_clip` (indirect) for the few
+//!    projections that must be clipped to a face's window pyramid;
 //! 4. `tile_bin` (count), scan, `tile_bin` (scatter): (caster, face) pairs per tile;
 //!    `tile_units`, scan: per tile, its occlusion work units (chunks of pairs
 //!    times chunks of its longest list, so that no invocation loops past
@@ -60,6 +61,8 @@ pub struct HardShadowPass {
     texel_count: ComputePipeline,
     texel_scatter: ComputePipeline,
     caster_setup: ComputePipeline,
+    caster_clip_args: ComputePipeline,
+    caster_clip: ComputePipeline,
     tile_count: ComputePipeline,
     tile_scatter: ComputePipeline,
     tile_units: ComputePipeline,
@@ -119,7 +122,14 @@ impl HardShadowPass {
             caster_setup: make(
                 "caster_setup",
                 shaders::CASTER_SETUP,
-                &[tb, ub, sb, sb, sb],
+                &[tb, ub, sb, sb, sb, sb],
+                &[],
+            )?,
+            caster_clip_args: make("caster_clip_args", shaders::CASTER_CLIP_ARGS, &[sb; 2], &[])?,
+            caster_clip: make(
+                "caster_clip",
+                shaders::CASTER_CLIP,
+                &[tb, ub, sb, sb, sb, sb],
                 &[],
             )?,
             tile_count: make("tile_bin_count", shaders::TILE_BIN, &[sb; 6], &[(1, 0)])?,
@@ -251,6 +261,10 @@ impl HardShadowPass {
         let planes = buffer("caster_planes", 80 * nt as u64)?;
         let pairs = buffer("caster_faces", 64 * pair_capacity as u64)?;
         let counters = buffer("counters", 4 * counter::COUNT as u64)?;
+        let clip_items = buffer("caster_clip_items", 8 * nt as u64)?;
+        let mut args_desc = BufferDesc::storage("caster_clip_args", 16);
+        args_desc.usage |= vk::BufferUsageFlags::INDIRECT_BUFFER;
+        let clip_args = ctx.create_buffer(args_desc)?;
         let tile_counts = buffer("tile_counts", 4 * tiles as u64)?;
         let tile_offsets = buffer("tile_offsets", 4 * (tiles as u64 + 1))?;
         let tile_max_len = buffer("tile_max_len", 4 * tiles as u64)?;
@@ -352,18 +366,26 @@ impl HardShadowPass {
             &mut walls,
             "caster_setup",
             |rec| {
+                let casters = [
+                    Binding::uniform_texel(triangles_buf, RGBA32UI),
+                    Binding::uniform(&faces_buf),
+                    s(&planes),
+                    s(&pairs),
+                    s(&counters),
+                    s(&clip_items),
+                ];
+                rec.dispatch(&self.caster_setup, &casters, pc, groups(nt))?;
+                rec.barrier(Barrier::ComputeToCompute);
+                // The few projections that cross a face's window pyramid:
+                // clipped by one invocation each (indirect dispatch).
                 rec.dispatch(
-                    &self.caster_setup,
-                    &[
-                        Binding::uniform_texel(triangles_buf, RGBA32UI),
-                        Binding::uniform(&faces_buf),
-                        s(&planes),
-                        s(&pairs),
-                        s(&counters),
-                    ],
+                    &self.caster_clip_args,
+                    &[s(&counters), s(&clip_args)],
                     pc,
-                    groups(nt),
+                    [1, 1, 1],
                 )?;
+                rec.barrier(Barrier::ComputeToIndirect);
+                rec.dispatch_indirect(&self.caster_clip, &casters, pc, &clip_args)?;
                 rec.barrier(Barrier::ComputeToCompute);
                 Ok(())
             },

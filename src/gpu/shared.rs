@@ -153,6 +153,8 @@ pub mod counter {
     pub const RASTERIZED: usize = 4;
     pub const TEXELS_VISITED: usize = 5;
     pub const TESTS: usize = 6;
+    /// (Triangle, face mask) items left to `caster_clip`.
+    pub const CLIP_ITEMS: usize = 7;
     pub const COUNT: usize = 8;
 }
 

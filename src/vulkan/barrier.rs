@@ -26,6 +26,9 @@ pub enum Barrier {
     /// Compute reads, then compute writes of the same memory (reuse of
     /// scratch buffers): an execution dependency is enough.
     ComputeReadToComputeWrite,
+    /// Compute writes, then an indirect dispatch reads its arguments (and
+    /// compute reads or writes).
+    ComputeToIndirect,
 }
 
 impl Barrier {
@@ -69,6 +72,12 @@ impl Barrier {
             Barrier::ComputeReadToComputeWrite => {
                 (S::COMPUTE_SHADER, A::empty(), S::COMPUTE_SHADER, A::empty())
             }
+            Barrier::ComputeToIndirect => (
+                S::COMPUTE_SHADER,
+                A::SHADER_WRITE,
+                S::DRAW_INDIRECT | S::COMPUTE_SHADER,
+                A::INDIRECT_COMMAND_READ | shader_rw,
+            ),
         }
     }
 

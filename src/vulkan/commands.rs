@@ -163,6 +163,33 @@ impl CommandRecorder {
         Ok(())
     }
 
+    /// Like [`Self::dispatch`], with the workgroup counts read on the device
+    /// from `args` (three u32 at offset 0, written by an earlier pass; a
+    /// [`Barrier::ComputeToIndirect`](crate::vulkan::Barrier) must separate
+    /// them). `args` needs `INDIRECT_BUFFER` usage.
+    pub fn dispatch_indirect(
+        &mut self,
+        pipeline: &ComputePipeline,
+        bindings: &[Binding<'_>],
+        push: &[u8],
+        args: &Buffer,
+    ) -> Result<()> {
+        if args.size() < 12 {
+            return Err(Error::InvalidInput(format!(
+                "indirect arguments of \"{}\" need 12 bytes, the buffer has {}",
+                pipeline.name(),
+                args.size()
+            )));
+        }
+        self.bind(pipeline, bindings, push)?;
+        unsafe {
+            self.device
+                .raw()
+                .cmd_dispatch_indirect(self.cmd, args.raw(), 0)
+        };
+        Ok(())
+    }
+
     /// Binds pipeline, descriptor set and push constants without
     /// dispatching (for `vkCmdDispatchIndirect` through [`Self::raw`]).
     pub fn bind(

@@ -1,0 +1,16 @@
+#version 450
+// The indirect workgroup counts of caster_clip: one invocation per clip item.
+#extension GL_GOOGLE_include_directive : require
+#include "hard_common.glsl"
+layout(local_size_x = 1) in;
+
+layout(set = 0, binding = 0) readonly buffer Counters { uint counters[]; };
+layout(set = 0, binding = 1) writeonly buffer Args { uint args[]; };
+
+void main() {
+    uint items = min(counters[COUNTER_CLIP_ITEMS], pc.sizes.y);
+    uint g = (items + WORKGROUP_1D - 1u) / WORKGROUP_1D;
+    args[0] = min(g, 65535u);
+    args[1] = g == 0u ? 1u : (g + 65534u) / 65535u;
+    args[2] = 1u;
+}

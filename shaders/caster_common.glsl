@@ -1,0 +1,109 @@
+// Shared by caster_setup (every triangle, the common case) and caster_clip
+// (the few (triangle, face) pairs that cross the face's window pyramid):
+// the bindings and the per-face conservative rectangle and edges of a
+// caster's projection. Twin: cpu::casters::caster_face.
+//
+// The split exists for lavapipe: a shader that declares a dynamically
+// indexed private array (the clip polygon) pays for it on every invocation,
+// used or not (measured: 100k triangles took 105 ms with an immediate
+// return, 7 ms without the array). Only caster_clip declares one.
+#ifndef AFS_CASTER_COMMON_GLSL
+#define AFS_CASTER_COMMON_GLSL
+#include "hard_common.glsl"
+
+layout(set = 0, binding = 0) uniform usamplerBuffer triangles_tb; // GpuTriangle: 3 texels
+layout(set = 0, binding = 1) uniform Faces { LightFace faces[6]; }; // read alike: a uniform buffer
+layout(set = 0, binding = 2) writeonly buffer Planes { CasterPlanes planes[]; };
+layout(set = 0, binding = 3) writeonly buffer Pairs { CasterFace pairs[]; };
+layout(set = 0, binding = 4) buffer Counters { uint counters[]; };
+// (triangle, face mask | CLIP_ITEM_RASTERIZED): the pairs left to caster_clip.
+layout(set = 0, binding = 5) buffer ClipItems { uvec2 clip_items[]; };
+
+// Clip item flag: the triangle already has a pair from caster_setup.
+#define CLIP_ITEM_RASTERIZED 0x100u
+
+// Camera-relative vertex k of triangle i.
+vec3 triangle_vertex(uint i, uint k) {
+    return uintBitsToFloat(texelFetch(triangles_tb, int(3u * i + k)).xyz);
+}
+
+// Face coordinates (right, up, forward) of light-relative q.
+vec3 to_face(LightFace lf, vec3 q) {
+    return vec3(dot(q, lf.right.xyz), dot(q, lf.up.xyz), dot(q, lf.forward.xyz));
+}
+
+// The window's far x and y (face units).
+vec2 window_end(LightFace lf) {
+    return lf.window.xy + vec2(float(pc.sizes.z)) / lf.window.zw;
+}
+
+// Folds one polygon vertex (face coordinates) into the depth minimum and
+// the texel-space bounds (cpu::casters::caster_face).
+void accumulate(vec3 p, bool point, float z_eps, vec4 window, inout float z_min, inout vec2 lo,
+                inout vec2 hi, inout bool touches_light) {
+    z_min = min(z_min, p.z);
+    if (point && !(p.z > z_eps)) {
+        touches_light = true;
+        return;
+    }
+    vec2 pr = point ? p.xy / p.z : p.xy;
+    vec2 tt = vec2((pr.x - window.x) * window.z, (pr.y - window.y) * window.w);
+    lo = min(lo, tt);
+    hi = max(hi, tt);
+}
+
+// Appends the (caster i, face f) pair from its clipped polygon's bounds
+// (z_min, lo, hi, touches_light) and its unclipped projection t0..t2;
+// false when the polygon lies beyond the farthest view sample.
+bool emit_pair(uint i, uint f, LightFace lf, vec3 t0, vec3 t1, vec3 t2, float z_min, vec2 lo,
+               vec2 hi, bool touches_light) {
+    bool point = is_point_light();
+    float z_far = lf.far.x;
+    float z_eps = z_far * 1e-6;
+    if (z_min > z_far * (1.0 + 1e-5) + 1e-30) {
+        return false;
+    }
+    uint res = pc.sizes.z;
+    float max_t = float(res) - 1.0;
+    uvec4 rect;
+    if (touches_light || any(isinf(lo)) || any(isinf(hi)) || any(isnan(lo)) || any(isnan(hi))) {
+        rect = uvec4(0u, 0u, res - 1u, res - 1u);
+    } else {
+        rect = uvec4(clamp(floor(lo.x - TEXEL_MARGIN), 0.0, max_t), clamp(floor(lo.y - TEXEL_MARGIN), 0.0, max_t),
+                     clamp(floor(hi.x + TEXEL_MARGIN), 0.0, max_t), clamp(floor(hi.y + TEXEL_MARGIN), 0.0, max_t));
+    }
+    // Edge functions of the unclipped projection when all of it is in front of the light.
+    vec4 pe[3] = vec4[3](vec4(0.0), vec4(0.0), vec4(0.0));
+    bool front = !point || (t0.z > z_eps && t1.z > z_eps && t2.z > z_eps);
+    if (front) {
+        vec3 tri[3] = vec3[3](t0, t1, t2);
+        vec2 tt[3];
+        for (int k = 0; k < 3; k++) {
+            vec2 pr = point ? tri[k].xy / tri[k].z : tri[k].xy;
+            tt[k] = vec2((pr.x - lf.window.x) * lf.window.z, (pr.y - lf.window.y) * lf.window.w);
+        }
+        vec2 ab = tt[1] - tt[0], ac = tt[2] - tt[0];
+        float area = ab.x * ac.y - ab.y * ac.x;
+        if (!isinf(area) && !isnan(area) && abs(area) >= 1e-6) {
+            float s = sign(area);
+            for (int k = 0; k < 3; k++) {
+                vec2 a = tt[k], b = tt[(k + 1) % 3];
+                float ea = -(b.y - a.y) * s;
+                float eb = (b.x - a.x) * s;
+                pe[k] = vec4(ea, eb, -(ea * a.x + eb * a.y), 1.0);
+            }
+        }
+    }
+    uint slot = atomicAdd(counters[COUNTER_PAIRS], 1u);
+    if (slot < pc.more.x) {
+        CasterFace cf;
+        cf.ids = uvec4(i, f, rect.x | (rect.y << 16), rect.z | (rect.w << 16));
+        cf.e0 = pe[0];
+        cf.e1 = pe[1];
+        cf.e2 = pe[2];
+        pairs[slot] = cf;
+    }
+    return true;
+}
+
+#endif
