@@ -52,6 +52,19 @@ void accumulate(vec3 p, bool point, float z_eps, vec4 window, inout float z_min,
     hi = max(hi, tt);
 }
 
+// Appends one (caster, face) pair: texel rectangle and optional edges (w = 1).
+void append_pair(uint i, uint f, uvec4 rect, vec4 e0, vec4 e1, vec4 e2) {
+    uint slot = atomicAdd(counters[COUNTER_PAIRS], 1u);
+    if (slot < pc.more.x) {
+        CasterFace cf;
+        cf.ids = uvec4(i, f, rect.x | (rect.y << 16), rect.z | (rect.w << 16));
+        cf.e0 = e0;
+        cf.e1 = e1;
+        cf.e2 = e2;
+        pairs[slot] = cf;
+    }
+}
+
 // Appends the (caster i, face f) pair from its clipped polygon's bounds
 // (z_min, lo, hi, touches_light) and its unclipped projection t0..t2;
 // false when the polygon lies beyond the farthest view sample.
@@ -94,15 +107,7 @@ bool emit_pair(uint i, uint f, LightFace lf, vec3 t0, vec3 t1, vec3 t2, float z_
             }
         }
     }
-    uint slot = atomicAdd(counters[COUNTER_PAIRS], 1u);
-    if (slot < pc.more.x) {
-        CasterFace cf;
-        cf.ids = uvec4(i, f, rect.x | (rect.y << 16), rect.z | (rect.w << 16));
-        cf.e0 = pe[0];
-        cf.e1 = pe[1];
-        cf.e2 = pe[2];
-        pairs[slot] = cf;
-    }
+    append_pair(i, f, rect, pe[0], pe[1], pe[2]);
     return true;
 }
 

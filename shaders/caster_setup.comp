@@ -9,6 +9,102 @@
 #include "caster_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 
+// The image (texel coordinates) of face point p seen from the light's centre.
+void fold_image(LightFace lf, vec3 p, inout vec2 lo, inout vec2 hi) {
+    vec2 pr = p.xy / p.z;
+    vec2 tt = vec2((pr.x - lf.window.x) * lf.window.z, (pr.y - lf.window.y) * lf.window.w);
+    lo = min(lo, tt);
+    hi = max(hi, tt);
+}
+
+// Soft shadows (paper §4.3): a triangle casts unless it is degenerate or,
+// on a closed mesh, every point of the light lies in front of it. Its
+// influence region on a face: the images, seen from the light's centre, of
+// its vertices and of the rays from the corners of a polygon bounding the
+// light's silhouette (seen from each vertex) through the vertex, to the
+// farthest view sample's depth; plus its edges' crossings of that depth.
+// A vertex as near as the light's extent makes the region the whole face.
+// Twin: cpu::soft::influence_rect.
+void soft_caster(uint i, vec3 v[3], vec3 n, bool closed) {
+    vec3 o = pc.origin.xyz;
+    float R = pc.soft_light.x;
+    uint degree = uint(pc.soft_light.y);
+    CasterPlanes cp;
+    cp.support = vec4(0.0);
+    cp.edge0 = vec4(0.0);
+    cp.edge1 = vec4(0.0);
+    cp.edge2 = vec4(0.0);
+    cp.side = vec4(0.0);
+    planes[i] = cp;
+    float nl = length(n);
+    if (any(isnan(n)) || any(isinf(n)) || nl == 0.0 || isinf(nl)) {
+        atomicAdd(counters[COUNTER_DEGENERATE], 1u);
+        return;
+    }
+    if (closed && dot(n, o - v[0]) > R * nl) {
+        atomicAdd(counters[COUNTER_FRONT_FACING_CLOSED], 1u);
+        return;
+    }
+    float half_angle = 3.14159265 / float(degree);
+    // How far from the centre a corner of the bounding polygon can be.
+    float reach = R / cos(half_angle) * (1.0 + 1e-4);
+    uint res = pc.sizes.z;
+    float max_t = float(res) - 1.0;
+    bool any_face = false;
+    for (uint f = 0u; f < pc.sizes.w; f++) {
+        LightFace lf = faces[f];
+        if (lf.right.w == 0.0) {
+            continue;
+        }
+        vec3 t[3] = vec3[3](to_face(lf, v[0] - o), to_face(lf, v[1] - o), to_face(lf, v[2] - o));
+        float z_far = lf.far.x;
+        float z_min = min(t[0].z, min(t[1].z, t[2].z));
+        float z_max = max(t[0].z, max(t[1].z, t[2].z));
+        if (z_min > z_far * (1.0 + 1e-5) + 1e-30 || z_max < -reach) {
+            continue; // beyond every view sample, or wholly behind the light
+        }
+        uvec4 rect = uvec4(0u, 0u, res - 1u, res - 1u);
+        if (z_min > reach) {
+            vec2 lo = vec2(1.0 / 0.0), hi = vec2(-1.0 / 0.0);
+            for (int k = 0; k < 3; k++) {
+                vec3 a = t[k], b = t[(k + 1) % 3];
+                if ((a.z - z_far) * (b.z - z_far) < 0.0) {
+                    fold_image(lf, a + (b - a) * ((z_far - a.z) / (b.z - a.z)), lo, hi);
+                }
+                if (a.z > z_far) {
+                    continue;
+                }
+                fold_image(lf, a, lo, hi);
+                // The silhouette circle of the light's bounding sphere seen from a.
+                float dist2 = dot(a, a);
+                vec3 centre = a * (R * R / dist2);
+                float rho = R * sqrt(max(dist2 - R * R, 0.0) / dist2) / cos(half_angle) * (1.0 + 1e-4);
+                vec3 ax = normalize(a);
+                vec3 e1 = normalize(abs(ax.x) < 0.9 ? cross(ax, vec3(1, 0, 0)) : cross(ax, vec3(0, 1, 0)));
+                vec3 e2 = cross(ax, e1);
+                for (uint j = 0u; j < degree; j++) {
+                    float th = 2.0 * half_angle * float(j);
+                    vec3 l = centre + rho * (cos(th) * e1 + sin(th) * e2);
+                    fold_image(lf, l + (a - l) * ((z_far - l.z) / (a.z - l.z)), lo, hi);
+                }
+            }
+            // One texel of margin: the region is conservative by construction,
+            // the margin absorbs f32 rounding against the samples' texels.
+            if (any(isnan(lo)) || any(isnan(hi))) {
+                rect = uvec4(0u, 0u, res - 1u, res - 1u);
+            } else if (hi.x < -1.0 || hi.y < -1.0 || lo.x > float(res) + 1.0 || lo.y > float(res) + 1.0) {
+                continue;
+            } else {
+                rect = uvec4(clamp(floor(lo.x - 1.0), 0.0, max_t), clamp(floor(lo.y - 1.0), 0.0, max_t),
+                             clamp(floor(hi.x + 1.0), 0.0, max_t), clamp(floor(hi.y + 1.0), 0.0, max_t));
+            }
+        }
+        append_pair(i, f, rect, vec4(0.0), vec4(0.0), vec4(0.0));
+        any_face = true;
+    }
+    atomicAdd(counters[any_face ? COUNTER_RASTERIZED : COUNTER_CULLED], 1u);
+}
+
 void main() {
     uint i = linear_invocation();
     if (i >= pc.sizes.y) {
@@ -21,6 +117,10 @@ void main() {
     // f32-accurate planes (cpu::casters::caster_planes).
     vec3 v[3] = vec3[3](triangle_vertex(i, 0u), triangle_vertex(i, 1u), triangle_vertex(i, 2u));
     vec3 n = cross(v[1] - v[0], v[2] - v[0]);
+    if (is_soft()) {
+        soft_caster(i, v, n, closed);
+        return;
+    }
     CasterPlanes cp;
     cp.support = vec4(0.0);
     cp.edge0 = vec4(0.0);

@@ -16,8 +16,10 @@
 // every loop of an invocation silently once all its loops together have run
 // 65535 iterations (LP_MAX_TGSI_LOOP_ITERATIONS), so each invocation's work
 // is bounded: at most OCC_PAIR_CHUNK * (OCC_SAMPLE_CHUNK + 1) iterations.
-#define OCC_PAIR_CHUNK 64u
-#define OCC_SAMPLE_CHUNK 256u
+// Specialization constants: the soft exact mode loops over 128 light
+// samples per test, so its chunks are smaller.
+layout(constant_id = 2) const uint OCC_PAIR_CHUNK = 64u;
+layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 #define TEXEL_MARGIN 0.01
 // GpuTriangle flags bit: the triangle belongs to a closed mesh.
 #define TRIANGLE_CLOSED 4u
@@ -31,7 +33,9 @@
 #define COUNTER_TEXELS_VISITED 5
 #define COUNTER_TESTS 6
 #define COUNTER_CLIP_ITEMS 7
-#define COUNTER_COUNT 8
+// Soft occlusion: (view sample, caster) tests that blocked >= 1 light sample.
+#define COUNTER_BLOCKING 8
+#define COUNTER_COUNT 12
 
 // Frame-wide parameters (push constants).
 struct HardPush {
@@ -41,7 +45,10 @@ struct HardPush {
     uvec4 more;        // x: pair capacity, y: tiles per row, z: tiles per face, w: occlusion units
     vec4 dir_right;    // directional light's face basis: right
     vec4 dir_up;       // and up (forward = direction)
+    uvec4 soft;        // x: 128-sample block, y: light samples (0: hard shadows), z: LUT resolution, w: SOFT_* flags
+    vec4 soft_light;   // x: light bounding radius R (light samples within R of origin), y: influence polygon degree
 };
+#define SOFT_EXACT 1u
 
 // One light face: basis and fitted window (written by light_fit_finalize).
 struct LightFace {
@@ -85,6 +92,9 @@ struct CasterFace {
 
 layout(push_constant) uniform Push { HardPush pc; };
 
+// Soft shadows: the light is the bounding sphere (origin, R) of its samples.
+bool is_soft() { return pc.soft.y != 0u; }
+
 uint linear_invocation() {
     return (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * WORKGROUP_1D + gl_LocalInvocationID.x;
 }
@@ -100,6 +110,10 @@ void point_face_basis(uint f, out vec3 r, out vec3 u, out vec3 w) {
 }
 
 bool faces_light(vec3 p, vec3 n) {
+    if (is_soft()) {
+        // Some light sample may be in front of the surface.
+        return dot(n, pc.origin.xyz - p) > -pc.soft_light.x * length(n);
+    }
     return is_point_light() ? dot(n, pc.origin.xyz - p) > 0.0 : dot(n, -pc.direction.xyz) > 0.0;
 }
 

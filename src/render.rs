@@ -196,11 +196,12 @@ pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Resul
 use glam::{DVec3, Vec3};
 
 use crate::cpu::light_view::LightView;
-use crate::gpu::hard_shadows::{gpu_inputs, HardShadowOutput, HardShadowPass};
+use crate::gpu::hard_shadows::{gpu_inputs, HardShadowOutput, HardShadowPass, SoftLight};
 use crate::gpu::shared::{counter, GpuTriangle, GpuViewSample};
 use crate::gpu::view_samples::{read_view_samples, ViewSamplePass};
 use crate::light::{Light, LightShape};
 use crate::oracle::ViewSample;
+use crate::scene::file::{ShadowSettings, SoftMode};
 use crate::scene::Scene;
 use crate::vulkan::BufferDesc;
 use crate::vulkan::{ContextOptions, GpuContext};
@@ -220,6 +221,66 @@ pub struct HardShadowResult {
     pub lit: Vec<Option<bool>>,
     /// Statistics (counters and milliseconds per pass).
     pub stats: serde_json::Value,
+}
+
+/// Soft-shadow visibility of a set of view samples for one light with extent.
+#[derive(Clone, Debug)]
+pub struct SoftShadowResult {
+    /// Per view sample: the visible fraction of the light samples, `None`
+    /// where not evaluated (no sample, or facing away from the whole light).
+    pub visibility: Vec<Option<f32>>,
+    /// Per view sample, its visible light samples: `mask_words` words, bit
+    /// `j % 32` of word `j / 32` for light sample `j` of
+    /// [`Light::light_samples`].
+    pub visible: Vec<u32>,
+    /// Words per view sample in `visible`.
+    pub mask_words: usize,
+    /// Statistics (counters and milliseconds per pass).
+    pub stats: serde_json::Value,
+}
+
+/// Corners of the polygon bounding the light's silhouette (influence regions).
+pub const INFLUENCE_POLYGON_DEGREE: u32 = 6;
+
+/// A light with extent as the soft-shadow passes see it (camera-relative
+/// samples), and the point it is seen from (their centre).
+pub fn soft_light(
+    light: &Light,
+    eye: DVec3,
+    settings: &ShadowSettings,
+) -> Option<(SoftLight, LightView)> {
+    if !light.is_area() {
+        return None;
+    }
+    let samples = match light.light_samples() {
+        crate::light::LightSamples::Positions(p) => p,
+        crate::light::LightSamples::Direction(_) => return None,
+    };
+    let sl = SoftLight {
+        samples: samples.iter().map(|p| (*p - eye).as_vec3()).collect(),
+        exact: settings.mode == SoftMode::Exact,
+        lut_resolution: settings.lut_resolution,
+        polygon_degree: INFLUENCE_POLYGON_DEGREE,
+    };
+    let (centre, _) = sl.bounds();
+    Some((sl, LightView::Point { position: centre }))
+}
+
+fn soft_stats(
+    out: &HardShadowOutput,
+    resolution: u32,
+    faces: usize,
+    sl: &SoftLight,
+) -> serde_json::Value {
+    let mut st = hard_stats(out, resolution, faces);
+    let c = &out.counters;
+    st["light_samples"] = serde_json::json!(sl.samples.len());
+    st["mode"] = serde_json::json!(if sl.exact { "exact" } else { "lut" });
+    st["lut_resolution"] = serde_json::json!(sl.lut_resolution);
+    st["blocking_tests"] = serde_json::json!(c[counter::BLOCKING]);
+    st["blocking_share"] =
+        serde_json::json!(c[counter::BLOCKING] as f64 / c[counter::TESTS].max(1) as f64);
+    st
 }
 
 /// The light as the hard-shadow passes see it, camera-relative; `None`
@@ -251,11 +312,17 @@ fn hard_stats(out: &HardShadowOutput, resolution: u32, faces: usize) -> serde_js
     let max_list = out.list_lengths.iter().copied().max().unwrap_or(0);
     let c = &out.counters;
     let culled = c[counter::DEGENERATE] + c[counter::FRONT_FACING_CLOSED] + c[counter::CULLED];
-    let ms: serde_json::Map<String, serde_json::Value> = out
-        .timings
-        .iter()
-        .map(|t| (t.name.clone(), serde_json::json!(t.ms)))
-        .collect();
+    // Passes run once per 128-sample block appear once per block: summed.
+    let mut ms = serde_json::Map::new();
+    for t in &out.timings {
+        let prev = ms.get(&t.name).and_then(|v| v.as_f64());
+        let v = match (prev, t.ms) {
+            (Some(a), Some(b)) => Some(a + b),
+            (None, b) => b,
+            (a, None) => a,
+        };
+        ms.insert(t.name.clone(), serde_json::json!(v));
+    }
     serde_json::json!({
         "light_texels": resolution,
         "light_faces": faces,
@@ -336,6 +403,52 @@ impl Engine {
         self.hard_shadows_gpu(&vs, &ts, &lv, light_texels)
     }
 
+    /// Soft-shadow visibility (paper §4) of user-supplied view samples (as in
+    /// [`Engine::hard_shadows`]) for a `light` with extent, with the
+    /// `settings`' mode, look-up resolution and light-texel resolution.
+    pub fn soft_shadows(
+        &mut self,
+        scene: &Scene,
+        eye: DVec3,
+        samples: &[Option<ViewSample>],
+        light: &Light,
+        settings: &ShadowSettings,
+    ) -> Result<SoftShadowResult> {
+        light.validate()?;
+        let (sl, lv) = soft_light(light, eye, settings).ok_or_else(|| {
+            crate::Error::InvalidInput("soft shadows need a light with extent".into())
+        })?;
+        let mut with_ids = Vec::with_capacity(samples.len());
+        for (i, s) in samples.iter().enumerate() {
+            if let Some(s) = s {
+                if !s.position.is_finite() || !s.normal.is_finite() {
+                    return Err(crate::Error::InvalidInput(format!(
+                        "view sample {i} is not finite: {s:?}"
+                    )));
+                }
+            }
+            with_ids.push(s.map(|s| {
+                (
+                    (s.position - eye).as_vec3(),
+                    s.normal.as_vec3().normalize_or_zero(),
+                    s.triangle,
+                )
+            }));
+        }
+        let (vs, ts) = gpu_inputs(&with_ids, &gpu_triangles(scene, eye));
+        let out = self
+            .hard
+            .run(&self.ctx, &vs, &ts, &lv, settings.light_texels, Some(&sl))?;
+        let stats = soft_stats(&out, settings.light_texels, lv.face_count(), &sl);
+        let so = out.soft.expect("a soft run returns soft output");
+        Ok(SoftShadowResult {
+            visibility: so.visibility,
+            visible: so.visible,
+            mask_words: so.mask_words,
+            stats,
+        })
+    }
+
     /// [`Engine::hard_shadows`] on inputs already in GPU form.
     pub fn hard_shadows_gpu(
         &mut self,
@@ -344,9 +457,14 @@ impl Engine {
         light: &LightView,
         light_texels: u32,
     ) -> Result<HardShadowResult> {
-        let out = self
-            .hard
-            .run(&self.ctx, view_samples, triangles, light, light_texels)?;
+        let out = self.hard.run(
+            &self.ctx,
+            view_samples,
+            triangles,
+            light,
+            light_texels,
+            None,
+        )?;
         let stats = hard_stats(&out, light_texels, light.face_count());
         Ok(HardShadowResult {
             lit: out.lit,
@@ -357,7 +475,7 @@ impl Engine {
     /// Renders a frame: view samples, then per light the hard-shadow passes
     /// (point and directional lights) or, for lights with extent until the
     /// soft-shadow passes exist, the CPU oracle; then shading and the dump.
-    pub fn render(&mut self, desc: &SceneDescription, options: FrameOptions) -> Result<Frame> {
+    pub fn render(&mut self, desc: &SceneDescription, _options: FrameOptions) -> Result<Frame> {
         desc.validate()?;
         let t0 = Instant::now();
         let eye = desc.camera.eye;
@@ -392,13 +510,6 @@ impl Engine {
         if !gpu_tris.is_empty() {
             self.ctx.upload_staged(&tri_buf, 0, &gpu_tris)?;
         }
-        // The oracle is only needed for lights the GPU cannot do yet.
-        let oracle = desc
-            .lights
-            .iter()
-            .any(|l| light_view(l, eye).is_none())
-            .then(|| Oracle::new(&triangles, eye));
-
         // 2-5. Per light: lists, casters, rasterization, occlusion, resolve.
         let mut light_samples = Vec::new();
         let mut visibility = Vec::new();
@@ -418,6 +529,7 @@ impl Engine {
                         gpu_tris.len(),
                         &lv,
                         desc.shadows.light_texels,
+                        None,
                     )?;
                     let mut stats = hard_stats(&out, desc.shadows.light_texels, lv.face_count());
                     stats["wall_ms"] = serde_json::json!(t_hard.elapsed().as_secs_f64() * 1e3);
@@ -435,16 +547,29 @@ impl Engine {
                     light_stats.push(serde_json::json!({"light": k, "path": "gpu hard shadows", "stats": r.stats}));
                 }
                 None => {
-                    let t = Instant::now();
-                    let oracle = oracle.as_ref().expect("built for area lights");
-                    let (vis, ev) = oracle_light(oracle, &view, &samples, k, options.progress);
-                    evaluated.push(ev);
-                    visibility.push(vis);
-                    light_stats.push(serde_json::json!({
-                        "light": k,
-                        "path": "cpu oracle (the soft-shadow GPU passes are not implemented yet)",
-                        "ms": t.elapsed().as_secs_f64() * 1e3,
-                    }));
+                    let (sl, lv) = soft_light(light, eye, &desc.shadows).ok_or_else(|| {
+                        crate::Error::InvalidInput(format!("light {k} has no samples"))
+                    })?;
+                    let t_soft = Instant::now();
+                    let out = self.hard.run_on(
+                        &self.ctx,
+                        &view_buf,
+                        n,
+                        &tri_buf,
+                        gpu_tris.len(),
+                        &lv,
+                        desc.shadows.light_texels,
+                        Some(&sl),
+                    )?;
+                    let mut stats =
+                        soft_stats(&out, desc.shadows.light_texels, lv.face_count(), &sl);
+                    stats["wall_ms"] = serde_json::json!(t_soft.elapsed().as_secs_f64() * 1e3);
+                    let so = out.soft.expect("a soft run returns soft output");
+                    visibility.push(so.visibility.iter().map(|v| v.unwrap_or(0.0)).collect());
+                    evaluated.push(so.visibility.iter().map(|v| v.is_some()).collect());
+                    light_stats.push(
+                        serde_json::json!({"light": k, "path": "gpu soft shadows", "stats": stats}),
+                    );
                 }
             }
             light_samples.push(samples);

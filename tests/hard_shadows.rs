@@ -129,7 +129,7 @@ fn gpu_matches_the_oracle_and_the_twins() {
                 .map(|(s, &t)| s.map(|(p, n)| (p, n, t)))
                 .collect();
             let (vs, ts) = gpu_inputs(&with_ids, &c.triangles);
-            let out = pass.run(&ctx, &vs, &ts, &c.light, res).unwrap();
+            let out = pass.run(&ctx, &vs, &ts, &c.light, res, None).unwrap();
             let (d, n) = differences(&out.lit, &c);
             let twin = hard_shadows(&c.light, &c.samples, &c.sample_tris, &c.triangles, res);
             let twin_d = out

@@ -52,7 +52,66 @@ pub struct HardShadowOutput {
     pub timings: Vec<PassTiming>,
     /// Bytes of GPU buffers this run allocated.
     pub buffer_bytes: u64,
+    /// Soft shadows only: per view sample, visibility in [0, 1] (`None`
+    /// where not evaluated), and its visible light samples, `mask_words`
+    /// words per sample (bit `j % 32` of word `j / 32` for light sample `j`).
+    pub soft: Option<SoftOutput>,
 }
+
+/// What a soft-shadow run returns besides the common output.
+#[derive(Clone, Debug)]
+pub struct SoftOutput {
+    /// Per view sample: visible fraction of the light samples, `None`
+    /// where not evaluated (invalid, or facing away from the whole light).
+    pub visibility: Vec<Option<f32>>,
+    /// Visible light samples per view sample, `mask_words` words each.
+    pub visible: Vec<u32>,
+    /// Words per view sample in `visible` (4 per 128-sample block).
+    pub mask_words: usize,
+}
+
+/// A light with extent as the soft-shadow passes see it (paper §4): its
+/// samples, camera-relative, and how the planes are evaluated.
+#[derive(Clone, Debug)]
+pub struct SoftLight {
+    /// 1 to 1024 light samples, camera-relative.
+    pub samples: Vec<glam::Vec3>,
+    /// Test every light sample against the planes instead of looking the
+    /// planes up (`mode = "exact"`).
+    pub exact: bool,
+    /// Plane look-up texture resolution (`lut_resolution`³ texels per block).
+    pub lut_resolution: u32,
+    /// Corners of the polygon that bounds the light's silhouette in the
+    /// influence regions (6: a hexagon).
+    pub polygon_degree: u32,
+}
+
+impl SoftLight {
+    /// The centre and bounding radius of the samples (their bounding box's
+    /// centre and the largest distance to it, rounded up).
+    pub fn bounds(&self) -> (glam::Vec3, f32) {
+        let lo = self
+            .samples
+            .iter()
+            .fold(glam::Vec3::splat(f32::INFINITY), |a, &b| a.min(b));
+        let hi = self
+            .samples
+            .iter()
+            .fold(glam::Vec3::splat(f32::NEG_INFINITY), |a, &b| a.max(b));
+        let c = (lo + hi) * 0.5;
+        let r = self
+            .samples
+            .iter()
+            .map(|s| s.distance(c))
+            .fold(0.0f32, f32::max);
+        // Rounded up, and never 0 (one sample): every |y| stays <= 1.
+        let scale = c.abs().max_element().max(hi.abs().max_element()).max(1e-30);
+        (c, (r * (1.0 + 1e-5)).max(scale * 1e-6))
+    }
+}
+
+/// Maximum number of light samples (`MAX_LIGHT_SAMPLES` in soft_common.glsl).
+pub const MAX_SOFT_SAMPLES: usize = 1024;
 
 /// The compiled pipelines of the hard-shadow passes; create once, run per frame.
 pub struct HardShadowPass {
@@ -68,8 +127,18 @@ pub struct HardShadowPass {
     tile_units: ComputePipeline,
     occlusion: ComputePipeline,
     resolve: ComputePipeline,
+    tile_units_exact: ComputePipeline,
+    lut_build: ComputePipeline,
+    occlusion_lut: ComputePipeline,
+    occlusion_exact: ComputePipeline,
+    soft_resolve: ComputePipeline,
     scan: ScanPass,
 }
+
+/// Occlusion chunks of the exact soft mode (pairs, list entries): each test
+/// loops over 128 light samples, so 8 · 32 · 129 stays below lavapipe's
+/// 65535 loop iterations per invocation.
+const EXACT_CHUNKS: [(u32, u32); 2] = [(2, 8), (3, 32)];
 
 fn groups(n: u32) -> [u32; 3] {
     let g = n.div_ceil(WG);
@@ -142,6 +211,31 @@ impl HardShadowPass {
                 &[],
             )?,
             resolve: make("resolve", shaders::RESOLVE, &[sb; 4], &[])?,
+            tile_units_exact: make(
+                "tile_units_exact",
+                shaders::TILE_UNITS,
+                &[sb; 3],
+                &EXACT_CHUNKS,
+            )?,
+            lut_build: make("lut_build", shaders::LUT_BUILD, &[sb, ub], &[])?,
+            occlusion_lut: make(
+                "occlusion_soft_lut",
+                shaders::OCCLUSION_SOFT,
+                &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb],
+                &[(4, 0)],
+            )?,
+            occlusion_exact: make(
+                "occlusion_soft_exact",
+                shaders::OCCLUSION_SOFT,
+                &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb],
+                &[EXACT_CHUNKS[0], EXACT_CHUNKS[1], (4, 1)],
+            )?,
+            soft_resolve: make(
+                "soft_resolve",
+                shaders::SOFT_RESOLVE,
+                &[sb, sb, sb, sb, sb, sb, ub],
+                &[],
+            )?,
             scan: ScanPass::new(ctx)?,
         })
     }
@@ -156,6 +250,7 @@ impl HardShadowPass {
         triangles: &[GpuTriangle],
         light: &LightView,
         resolution: u32,
+        soft: Option<&SoftLight>,
     ) -> Result<HardShadowOutput> {
         let samples_buf = ctx.create_buffer(BufferDesc::storage(
             "view_samples",
@@ -179,11 +274,16 @@ impl HardShadowPass {
             triangles.len(),
             light,
             resolution,
+            soft,
         )
     }
 
     /// [`HardShadowPass::run`] on view samples and triangles already on the
     /// GPU (e.g. the view-sample pass's output): `n` samples, `nt` triangles.
+    /// With `soft`, the same passes compute soft shadows (paper §4) of that
+    /// light, seen from `light` (a point light at the samples' centre; see
+    /// [`SoftLight::bounds`]): influence regions instead of projections,
+    /// light-sample bitmasks instead of one bit.
     #[allow(clippy::too_many_arguments)]
     pub fn run_on(
         &mut self,
@@ -194,8 +294,37 @@ impl HardShadowPass {
         nt: usize,
         light: &LightView,
         resolution: u32,
+        soft: Option<&SoftLight>,
     ) -> Result<HardShadowOutput> {
         let faces = light.face_count() as u32;
+        if let Some(sl) = soft {
+            if sl.samples.is_empty() || sl.samples.len() > MAX_SOFT_SAMPLES {
+                return Err(Error::InvalidInput(format!(
+                    "soft shadows take 1 to {MAX_SOFT_SAMPLES} light samples, got {}",
+                    sl.samples.len()
+                )));
+            }
+            if !sl.samples.iter().all(|s| s.is_finite()) {
+                return Err(Error::InvalidInput("a light sample is not finite".into()));
+            }
+            if !(3..=64).contains(&sl.polygon_degree) {
+                return Err(Error::InvalidInput(format!(
+                    "the influence polygon needs 3 to 64 corners, got {}",
+                    sl.polygon_degree
+                )));
+            }
+            if !sl.exact && !(2..=512).contains(&sl.lut_resolution) {
+                return Err(Error::InvalidInput(format!(
+                    "lut_resolution must be in 2..=512, got {}",
+                    sl.lut_resolution
+                )));
+            }
+            if !matches!(light, LightView::Point { .. }) {
+                return Err(Error::InvalidInput(
+                    "soft shadows are seen from a point (the light's centre)".into(),
+                ));
+            }
+        }
         if resolution == 0 || resolution > 16384 {
             return Err(Error::InvalidInput(format!(
                 "light_texels must be in 1..=16384, got {resolution}"
@@ -239,6 +368,19 @@ impl HardShadowPass {
             more: [pair_capacity, tiles_per_row, tiles_per_face, 0],
             dir_right: [r.x, r.y, r.z, 0.0],
             dir_up: [u.x, u.y, u.z, 0.0],
+            soft: match soft {
+                Some(sl) => [
+                    0,
+                    sl.samples.len() as u32,
+                    sl.lut_resolution,
+                    if sl.exact { 1 } else { 0 },
+                ],
+                None => [0; 4],
+            },
+            soft_light: match soft {
+                Some(sl) => [sl.bounds().1, sl.polygon_degree as f32, 0.0, 0.0],
+                None => [0.0; 4],
+            },
         };
         let pc = bytemuck::bytes_of(&push);
 
@@ -272,6 +414,33 @@ impl HardShadowPass {
         let unit_offsets = buffer("unit_offsets", 4 * (tiles as u64 + 1))?;
         let shadowed = buffer("shadowed", 4 * n as u64)?;
         let result = buffer("result", 4 * n as u64)?;
+        // Soft shadows: blocked bits per list slot, visible bits per view
+        // sample (4 words per 128-sample block), the light samples, the LUT.
+        let words = soft.map_or(0, |sl| sl.samples.len().div_ceil(128) * 4) as u64;
+        let max_range = ctx.info().limits.max_storage_buffer_range as u64;
+        if 4 * words * n as u64 > max_range {
+            return Err(Error::InvalidInput(format!(
+                "{n} view samples x {} light-sample words need {} bytes of masks; this device binds at most {max_range} (fewer view samples or light samples)",
+                words,
+                4 * words * n as u64
+            )));
+        }
+        let masks = buffer("blocked_masks", 4 * words * n as u64)?;
+        let visible = buffer("visible_masks", 4 * words * n as u64)?;
+        let light_ubo = {
+            let mut d = BufferDesc::storage("light_samples", 16 * MAX_SOFT_SAMPLES as u64);
+            d.usage |= vk::BufferUsageFlags::UNIFORM_BUFFER;
+            let b = ctx.create_buffer(d)?;
+            if let Some(sl) = soft {
+                let v: Vec<[f32; 4]> = sl.samples.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect();
+                ctx.upload_staged(&b, 0, &v)?;
+            }
+            b
+        };
+        let lut_texels = soft
+            .filter(|sl| !sl.exact)
+            .map_or(1, |sl| (sl.lut_resolution as u64).pow(3));
+        let lut = buffer("plane_lut", 16 * lut_texels)?;
 
         let mut fit_init = [0u32; 48];
         for f in 0..6 {
@@ -411,8 +580,12 @@ impl HardShadowPass {
                     groups(pair_capacity),
                 )?;
                 rec.barrier(Barrier::ComputeToCompute);
+                let units_pipeline = match soft {
+                    Some(sl) if sl.exact => &self.tile_units_exact,
+                    _ => &self.tile_units,
+                };
                 rec.dispatch(
-                    &self.tile_units,
+                    units_pipeline,
                     &[s(&tile_counts), s(&tile_max_len), s(&tile_units)],
                     pc,
                     groups(tiles),
@@ -468,41 +641,143 @@ impl HardShadowPass {
                 Ok(())
             },
         )?;
-        timed(ctx, &mut prof2, &mut rec, &mut walls, "occlusion", |rec| {
-            rec.dispatch(
-                &self.occlusion,
-                &[
-                    Binding::uniform_texel(&pairs, RGBA32UI),
-                    Binding::uniform_texel(&planes, RGBA32UI),
-                    s(&tile_offsets),
-                    Binding::uniform_texel(&tile_pairs, vk::Format::R32_UINT),
-                    s(&counts),
-                    s(&offsets),
-                    Binding::uniform_texel(&list_samples, RGBA32UI),
-                    s(&shadowed),
-                    s(&counters),
-                    s(&unit_offsets),
-                ],
-                pc2,
-                groups_2d(units.max(1)),
+        if let Some(sl) = soft {
+            rec.fill_buffer(masks.whole(), 0)?;
+            rec.barrier(Barrier::TransferToCompute);
+            let blocks = sl.samples.len().div_ceil(128) as u32;
+            let occlusion = if sl.exact {
+                &self.occlusion_exact
+            } else {
+                &self.occlusion_lut
+            };
+            // One pass per 128-sample block: its LUT, then its occlusion.
+            for block in 0..blocks {
+                let push_b = HardPush {
+                    soft: [block, push.soft[1], push.soft[2], push.soft[3]],
+                    ..push2
+                };
+                let pcb = bytemuck::bytes_of(&push_b);
+                if !sl.exact {
+                    let lut_n = (sl.lut_resolution as u64).pow(3) as u32;
+                    timed(ctx, &mut prof2, &mut rec, &mut walls, "lut_build", |rec| {
+                        rec.dispatch(
+                            &self.lut_build,
+                            &[s(&lut), Binding::uniform(&light_ubo)],
+                            pcb,
+                            groups(lut_n),
+                        )?;
+                        rec.barrier(Barrier::ComputeToCompute);
+                        Ok(())
+                    })?;
+                }
+                timed(ctx, &mut prof2, &mut rec, &mut walls, "occlusion", |rec| {
+                    rec.dispatch(
+                        occlusion,
+                        &[
+                            Binding::uniform_texel(&pairs, RGBA32UI),
+                            Binding::uniform_texel(triangles_buf, RGBA32UI),
+                            s(&tile_offsets),
+                            Binding::uniform_texel(&tile_pairs, vk::Format::R32_UINT),
+                            s(&counts),
+                            s(&offsets),
+                            Binding::uniform_texel(&list_samples, RGBA32UI),
+                            s(&masks),
+                            s(&counters),
+                            s(&unit_offsets),
+                            Binding::uniform(&light_ubo),
+                            Binding::uniform_texel(&lut, RGBA32UI),
+                        ],
+                        pcb,
+                        groups_2d(units.max(1)),
+                    )?;
+                    // The next block's LUT build overwrites what this read.
+                    rec.barrier(Barrier::ComputeToCompute);
+                    Ok(())
+                })?;
+            }
+            timed(
+                ctx,
+                &mut prof2,
+                &mut rec,
+                &mut walls,
+                "soft_resolve",
+                |rec| {
+                    rec.dispatch(
+                        &self.soft_resolve,
+                        &[
+                            s(samples_buf),
+                            s(&sample_texel),
+                            s(&sample_slot),
+                            s(&masks),
+                            s(&visible),
+                            s(&result),
+                            Binding::uniform(&light_ubo),
+                        ],
+                        pc,
+                        groups(n),
+                    )?;
+                    rec.barrier(Barrier::ComputeToHost);
+                    Ok(())
+                },
             )?;
-            rec.barrier(Barrier::ComputeToCompute);
-            Ok(())
-        })?;
-        timed(ctx, &mut prof2, &mut rec, &mut walls, "resolve", |rec| {
-            rec.dispatch(
-                &self.resolve,
-                &[s(&sample_texel), s(&sample_slot), s(&shadowed), s(&result)],
-                pc,
-                groups(n),
-            )?;
-            rec.barrier(Barrier::ComputeToHost);
-            Ok(())
-        })?;
+        } else {
+            timed(ctx, &mut prof2, &mut rec, &mut walls, "occlusion", |rec| {
+                rec.dispatch(
+                    &self.occlusion,
+                    &[
+                        Binding::uniform_texel(&pairs, RGBA32UI),
+                        Binding::uniform_texel(&planes, RGBA32UI),
+                        s(&tile_offsets),
+                        Binding::uniform_texel(&tile_pairs, vk::Format::R32_UINT),
+                        s(&counts),
+                        s(&offsets),
+                        Binding::uniform_texel(&list_samples, RGBA32UI),
+                        s(&shadowed),
+                        s(&counters),
+                        s(&unit_offsets),
+                    ],
+                    pc2,
+                    groups_2d(units.max(1)),
+                )?;
+                rec.barrier(Barrier::ComputeToCompute);
+                Ok(())
+            })?;
+            timed(ctx, &mut prof2, &mut rec, &mut walls, "resolve", |rec| {
+                rec.dispatch(
+                    &self.resolve,
+                    &[s(&sample_texel), s(&sample_slot), s(&shadowed), s(&result)],
+                    pc,
+                    groups(n),
+                )?;
+                rec.barrier(Barrier::ComputeToHost);
+                Ok(())
+            })?;
+        }
         ctx.submit_and_wait(rec)?;
         ctx.check_validation()?;
 
         let result: Vec<u32> = ctx.read_buffer_staged(&result, 0, n as usize)?;
+        let soft_out = match soft {
+            Some(_) => {
+                let vis: Vec<u32> = if words > 0 && n > 0 {
+                    ctx.read_buffer_staged(&visible, 0, (words * n as u64) as usize)?
+                } else {
+                    Vec::new()
+                };
+                Some(SoftOutput {
+                    visibility: result
+                        .iter()
+                        .map(|&r| {
+                            let v = f32::from_bits(r);
+                            (v >= 0.0).then_some(v)
+                        })
+                        .collect(),
+                    visible: vis,
+                    mask_words: words as usize,
+                })
+            }
+            None => None,
+        };
         let c: Vec<u32> = ctx.read_buffer_staged(&counters, 0, counter::COUNT)?;
         let list_lengths: Vec<u32> = ctx.read_buffer_staged(&counts, 0, texels as usize)?;
         let timings = match walls {
@@ -524,6 +799,7 @@ impl HardShadowPass {
             list_lengths,
             timings,
             buffer_bytes: bytes,
+            soft: soft_out,
         })
     }
 }

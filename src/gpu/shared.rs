@@ -155,7 +155,9 @@ pub mod counter {
     pub const TESTS: usize = 6;
     /// (Triangle, face mask) items left to `caster_clip`.
     pub const CLIP_ITEMS: usize = 7;
-    pub const COUNT: usize = 8;
+    /// Soft occlusion: tests that blocked at least one light sample.
+    pub const BLOCKING: usize = 8;
+    pub const COUNT: usize = 12;
 }
 
 /// `HardPush`: push constants of every hard-shadow pass.
@@ -174,6 +176,11 @@ pub struct HardPush {
     /// Directional light face basis (right, up).
     pub dir_right: [f32; 4],
     pub dir_up: [f32; 4],
+    /// Soft shadows: 128-sample block, light samples (0: hard shadows),
+    /// LUT resolution, `SOFT_*` flags.
+    pub soft: [u32; 4],
+    /// Soft shadows: light bounding radius, influence polygon degree.
+    pub soft_light: [f32; 4],
 }
 
 /// `LightFace`: a light face's basis and fitted window.
@@ -211,7 +218,7 @@ pub struct GpuCasterFace {
     pub edges: [[f32; 4]; 3],
 }
 
-const _: () = assert!(std::mem::size_of::<HardPush>() == 96);
+const _: () = assert!(std::mem::size_of::<HardPush>() == 128);
 const _: () = assert!(std::mem::size_of::<GpuLightFace>() == 128);
 const _: () = assert!(std::mem::size_of::<GpuCasterPlanes>() == 80);
 const _: () = assert!(std::mem::size_of::<GpuCasterFace>() == 64);

@@ -1,0 +1,51 @@
+#version 450
+// Soft pass, last: per view sample, its visible light samples = the ones in
+// front of its surface (the oracle's normal rule) and not blocked;
+// visibility = their count / light samples (paper §4). Samples that face
+// away from the whole light were never listed: 0, not evaluated.
+// Twin: cpu::soft::resolve.
+#extension GL_GOOGLE_include_directive : require
+#define LIGHT_SAMPLES_BINDING 6
+#include "soft_common.glsl"
+layout(local_size_x = WORKGROUP_1D) in;
+
+layout(set = 0, binding = 0) readonly buffer Samples { GpuViewSample samples[]; };
+layout(set = 0, binding = 1) readonly buffer SampleTexel { uint sample_texel[]; };
+layout(set = 0, binding = 2) readonly buffer SampleSlot { uint sample_slot[]; };
+layout(set = 0, binding = 3) readonly buffer Masks { uint masks[]; };      // blocked, per list slot
+layout(set = 0, binding = 4) writeonly buffer Visible { uint visible[]; }; // visible, per view sample
+layout(set = 0, binding = 5) writeonly buffer Result { float result[]; };  // visibility, -1 when not evaluated
+
+void main() {
+    uint i = linear_invocation();
+    if (i >= pc.sizes.x) {
+        return;
+    }
+    uint n_light = pc.soft.y;
+    uint words = ((n_light + 127u) / 128u) * 4u;
+    if (sample_texel[i] == NOT_LISTED) {
+        for (uint w = 0u; w < words; w++) {
+            visible[i * words + w] = 0u;
+        }
+        result[i] = -1.0;
+        return;
+    }
+    GpuViewSample s = samples[i];
+    vec3 p = sample_position(s);
+    vec3 nrm = sample_normal(s);
+    uint slot = sample_slot[i];
+    uint total = 0u;
+    for (uint w = 0u; w < words; w++) {
+        uint front = 0u;
+        for (uint b = 0u; b < 32u; b++) {
+            uint j = w * 32u + b;
+            if (j < n_light && dot(nrm, light_samples[j].xyz - p) > 0.0) {
+                front |= 1u << b;
+            }
+        }
+        uint v = front & ~masks[slot * words + w];
+        visible[i * words + w] = v;
+        total += bitCount(v);
+    }
+    result[i] = float(total) / float(n_light);
+}
