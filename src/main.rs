@@ -29,8 +29,10 @@ enum Command {
     /// Render a scene's shadows on the GPU and write the shaded image (and optionally a dump).
     ///
     /// Point and directional lights use the alias-free hard-shadow passes;
-    /// lights with extent are computed by the CPU oracle until the
-    /// soft-shadow passes exist (the output says so).
+    /// lights with extent (sphere, ellipsoid, disk, rect, explicit samples)
+    /// the soft-shadow passes: light-sample bitmasks from a plane look-up
+    /// texture (`--mode lut`, the default) or from testing every light
+    /// sample (`--mode exact`).
     Render(RenderArgs),
     /// Render a scene with the CPU ray-casting oracle (the reference).
     Reference(RenderArgs),
@@ -199,11 +201,6 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => {
             let desc = args.scene()?;
-            if desc.lights.iter().any(|l| l.is_area()) {
-                eprintln!(
-                    "note: soft shadows are not on the GPU yet: lights with extent are computed by the CPU oracle"
-                );
-            }
             let mut engine = Engine::new(&ContextOptions {
                 device: args.device.clone(),
                 ..Default::default()

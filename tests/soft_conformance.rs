@@ -2,11 +2,14 @@
 //! against the CPU oracle fed exactly the engine's view samples and light
 //! samples, per (pixel, light sample) pair.
 
-use alias_free_shadows::light::{Light, LightSamples};
+use alias_free_shadows::light::{Light, LightSamples, LightShape};
 use alias_free_shadows::oracle::{Oracle, ViewSamples};
 use alias_free_shadows::render::Engine;
-use alias_free_shadows::scene::file::{self, SceneDescription, ShadowSettings, SoftMode};
+use alias_free_shadows::scene::file::{
+    self, default_view, place_on_ground, SceneDescription, ShadowSettings, SoftMode,
+};
 use alias_free_shadows::vulkan::ContextOptions;
+use glam::DVec3;
 
 /// The engine's view samples as the oracle sees them: camera-relative f32
 /// positions and normals converted back, exactly.
@@ -86,21 +89,213 @@ fn agreement(
     }
 }
 
+/// Exact mode: the largest share of (pixel, light sample) pairs that may
+/// disagree with the oracle (issue 4).
+const EXACT_SHARE: f64 = 1e-4;
+/// Look-up mode at 128³: the issue's aim for the same share. Reported, not
+/// asserted: the aim is not met on every scene yet (README, status).
+const LUT_SHARE: f64 = 1e-3;
+/// Test resolution (the suite's budget; benches use 512²).
+const SIZE: u32 = 48;
+
+fn sized(mut desc: SceneDescription) -> SceneDescription {
+    desc.camera.width = SIZE;
+    desc.camera.height = SIZE;
+    desc
+}
+
+/// The scene's light with extent, or a sphere (radius 5% of the scene's
+/// diagonal) where its point light is.
+fn area_light(desc: &SceneDescription) -> Light {
+    let l = &desc.lights[0];
+    if l.is_area() {
+        return l.clone();
+    }
+    let (lo, hi) = desc.scene.bounds().unwrap();
+    let centre = l.center().unwrap_or(hi + (hi - lo) * 0.5);
+    Light {
+        shape: LightShape::Sphere {
+            position: centre,
+            radius: 0.05 * (hi - lo).length(),
+        },
+        samples: 128,
+        ..l.clone()
+    }
+}
+
+fn scenes() -> Vec<SceneDescription> {
+    let mut out: Vec<SceneDescription> = alias_free_shadows::scene::builtin::NAMES
+        .iter()
+        .map(|n| file::load(&format!("builtin:{n}")).unwrap())
+        .collect();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets");
+    for model in [
+        "Lantern/Lantern.gltf",
+        "BoomBox/BoomBox.gltf",
+        "Suzanne/Suzanne.gltf",
+    ] {
+        let path = root.join(model);
+        if !path.is_file() {
+            continue;
+        }
+        let mut scene = alias_free_shadows::scene::gltf_load::load_gltf(&path).unwrap();
+        place_on_ground(&mut scene);
+        let (camera, light) = default_view(&scene);
+        out.push(SceneDescription {
+            name: model.into(),
+            scene,
+            camera,
+            lights: vec![light],
+            shadows: Default::default(),
+        });
+    }
+    out
+}
+
 #[test]
-fn builtins_conform_in_exact_and_lut_modes() {
+fn every_scene_conforms_in_exact_and_lut_modes() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
-    for name in ["demo"] {
-        let mut desc = file::load(&format!("builtin:{name}")).unwrap();
-        desc.camera.width = 64;
-        desc.camera.height = 64;
-        let light = desc.lights[0].clone();
+    let mut lut_over = Vec::new();
+    for desc in scenes() {
+        let desc = sized(desc);
+        let light = area_light(&desc);
         for mode in [SoftMode::Exact, SoftMode::Lut] {
             let a = agreement(&mut engine, &desc, &light, mode);
+            let share = a.disagree as f64 / a.pairs.max(1) as f64;
             eprintln!(
-                "{name} {mode:?}: {} pixels, {} of {} pairs disagree ({:.2e}), visibility RMSE {:.2e}",
-                a.pixels, a.disagree, a.pairs, a.disagree as f64 / a.pairs as f64, a.rmse
+                "{} {mode:?} at {SIZE}²: {} pixels, {} of {} (pixel, light sample) pairs disagree ({share:.2e}), visibility RMSE {:.2e}",
+                desc.name, a.pixels, a.disagree, a.pairs, a.rmse
             );
+            assert!(a.pixels > 0);
+            match mode {
+                SoftMode::Exact => assert!(
+                    share <= EXACT_SHARE,
+                    "{}: exact mode disagrees on {share:.2e} of the pairs",
+                    desc.name
+                ),
+                SoftMode::Lut => {
+                    if share > LUT_SHARE {
+                        lut_over.push(format!("{} {share:.2e}", desc.name));
+                    }
+                }
+            }
         }
+    }
+    engine.context().check_validation().unwrap();
+    eprintln!("look-up mode above its aim of {LUT_SHARE:.0e}: {lut_over:?}");
+}
+
+#[test]
+fn every_light_kind_conforms() {
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let desc = sized(file::load("builtin:demo").unwrap());
+    let base = desc.lights[0].clone();
+    let p = base.center().unwrap();
+    let tilt = DVec3::new(0.3, -1.0, 0.2).normalize();
+    let kinds = [
+        LightShape::Sphere {
+            position: p,
+            radius: 0.6,
+        },
+        LightShape::Ellipsoid {
+            position: p,
+            semi_axes: DVec3::new(0.9, 0.3, 0.5),
+            normal: tilt,
+            tangent: DVec3::new(1.0, 0.3, 0.0).normalize(),
+        },
+        LightShape::Disk {
+            position: p,
+            radius: 0.7,
+            normal: tilt,
+            tangent: DVec3::new(1.0, 0.0, 0.3).normalize(),
+        },
+        LightShape::Rect {
+            position: p,
+            size: glam::DVec2::new(1.2, 0.5),
+            normal: tilt,
+            tangent: DVec3::new(1.0, 0.3, 0.0).normalize(),
+        },
+        LightShape::Explicit {
+            positions: (0..40)
+                .map(|k| {
+                    p + DVec3::new(
+                        (k % 7) as f64 * 0.1,
+                        (k / 7) as f64 * 0.08,
+                        (k % 3) as f64 * 0.15,
+                    )
+                })
+                .collect(),
+        },
+    ];
+    for shape in kinds {
+        let mut light = Light {
+            shape,
+            ..base.clone()
+        };
+        if let LightShape::Explicit { positions } = &light.shape {
+            light.samples = positions.len() as u32;
+        }
+        light.validate().unwrap();
+        let a = agreement(&mut engine, &desc, &light, SoftMode::Exact);
+        let share = a.disagree as f64 / a.pairs.max(1) as f64;
+        eprintln!(
+            "{:?}: {} of {} pairs disagree ({share:.2e}), RMSE {:.2e}",
+            std::mem::discriminant(&light.shape),
+            a.disagree,
+            a.pairs,
+            a.rmse
+        );
+        assert!(a.pairs > 0);
+        assert!(share <= EXACT_SHARE, "{:?}: {share:.2e}", light.shape);
+    }
+    engine.context().check_validation().unwrap();
+}
+
+/// One explicit light sample is a point light: the soft pipeline must give
+/// the hard path's answer at every view sample.
+#[test]
+fn a_one_sample_light_equals_the_hard_path() {
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    for spec in ["builtin:demo", "builtin:fence", "builtin:hairball"] {
+        let desc = sized(file::load(spec).unwrap());
+        let eye = desc.camera.eye;
+        let oracle = Oracle::new(&desc.scene.triangles(), eye);
+        let view = engine_view_samples(&oracle, &desc);
+        let p = desc.lights[0].center().unwrap();
+        let point = Light {
+            shape: LightShape::Point { position: p },
+            samples: 1,
+            ..desc.lights[0].clone()
+        };
+        let one = Light {
+            shape: LightShape::Explicit { positions: vec![p] },
+            samples: 1,
+            ..desc.lights[0].clone()
+        };
+        let hard = engine
+            .hard_shadows(&desc.scene, eye, &view.samples, &point, 512)
+            .unwrap();
+        let settings = ShadowSettings {
+            mode: SoftMode::Exact,
+            ..Default::default()
+        };
+        let soft = engine
+            .soft_shadows(&desc.scene, eye, &view.samples, &one, &settings)
+            .unwrap();
+        let mut differ = 0;
+        let mut lit = 0;
+        for i in 0..view.samples.len() {
+            let h = hard.lit[i] == Some(true);
+            let s = soft.visible[i * soft.mask_words] & 1 == 1;
+            differ += (h != s) as usize;
+            lit += h as usize;
+        }
+        eprintln!("{spec}: {lit} lit, {differ} differ");
+        assert!(lit > 0);
+        assert_eq!(
+            differ, 0,
+            "{spec}: the one-sample soft result differs from the hard path"
+        );
     }
     engine.context().check_validation().unwrap();
 }
