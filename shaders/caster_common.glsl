@@ -37,6 +37,11 @@ vec2 window_end(LightFace lf) {
     return lf.window.xy + vec2(float(pc.sizes.z)) / lf.window.zw;
 }
 
+// Texel-space coordinates of a projected face point (cpu::light_view::texel_of, unfloored).
+vec2 to_texel(vec4 window, vec2 pr) {
+    return vec2((pr.x - window.x) * window.z, (pr.y - window.y) * window.w);
+}
+
 // Folds one polygon vertex (face coordinates) into the depth minimum and
 // the texel-space bounds (cpu::casters::caster_face).
 void accumulate(vec3 p, bool point, float z_eps, vec4 window, inout float z_min, inout vec2 lo,
@@ -46,8 +51,7 @@ void accumulate(vec3 p, bool point, float z_eps, vec4 window, inout float z_min,
         touches_light = true;
         return;
     }
-    vec2 pr = point ? p.xy / p.z : p.xy;
-    vec2 tt = vec2((pr.x - window.x) * window.z, (pr.y - window.y) * window.w);
+    vec2 tt = to_texel(window, point ? p.xy / p.z : p.xy);
     lo = min(lo, tt);
     hi = max(hi, tt);
 }
@@ -92,8 +96,7 @@ bool emit_pair(uint i, uint f, LightFace lf, vec3 t0, vec3 t1, vec3 t2, float z_
         vec3 tri[3] = vec3[3](t0, t1, t2);
         vec2 tt[3];
         for (int k = 0; k < 3; k++) {
-            vec2 pr = point ? tri[k].xy / tri[k].z : tri[k].xy;
-            tt[k] = vec2((pr.x - lf.window.x) * lf.window.z, (pr.y - lf.window.y) * lf.window.w);
+            tt[k] = to_texel(lf.window, point ? tri[k].xy / tri[k].z : tri[k].xy);
         }
         vec2 ab = tt[1] - tt[0], ac = tt[2] - tt[0];
         float area = ab.x * ac.y - ab.y * ac.x;

@@ -11,8 +11,7 @@ layout(local_size_x = WORKGROUP_1D) in;
 
 // The image (texel coordinates) of face point p seen from the light's centre.
 void fold_image(LightFace lf, vec3 p, inout vec2 lo, inout vec2 hi) {
-    vec2 pr = p.xy / p.z;
-    vec2 tt = vec2((pr.x - lf.window.x) * lf.window.z, (pr.y - lf.window.y) * lf.window.w);
+    vec2 tt = to_texel(lf.window, p.xy / p.z);
     lo = min(lo, tt);
     hi = max(hi, tt);
 }

@@ -517,61 +517,53 @@ impl Engine {
         let mut light_stats = Vec::new();
         for (k, light) in desc.lights.iter().enumerate() {
             let samples = light.light_samples();
-            match light_view(light, eye) {
-                Some(lv) => {
-                    // The view samples stay on the GPU: no upload between passes.
-                    let t_hard = Instant::now();
-                    let out = self.hard.run_on(
-                        &self.ctx,
-                        &view_buf,
-                        n,
-                        &tri_buf,
-                        gpu_tris.len(),
-                        &lv,
-                        desc.shadows.light_texels,
-                        None,
-                    )?;
-                    let mut stats = hard_stats(&out, desc.shadows.light_texels, lv.face_count());
-                    stats["wall_ms"] = serde_json::json!(t_hard.elapsed().as_secs_f64() * 1e3);
-                    let r = HardShadowResult {
-                        lit: out.lit,
-                        stats,
-                    };
-                    visibility.push(
-                        r.lit
-                            .iter()
-                            .map(|l| if *l == Some(true) { 1.0 } else { 0.0 })
-                            .collect(),
-                    );
-                    evaluated.push(r.lit.iter().map(|l| l.is_some()).collect());
-                    light_stats.push(serde_json::json!({"light": k, "path": "gpu hard shadows", "stats": r.stats}));
-                }
+            // Point and directional lights: hard shadows; lights with
+            // extent: the same passes with light-sample bitmasks.
+            let (lv, soft) = match light_view(light, eye) {
+                Some(lv) => (lv, None),
                 None => {
                     let (sl, lv) = soft_light(light, eye, &desc.shadows).ok_or_else(|| {
                         crate::Error::InvalidInput(format!("light {k} has no samples"))
                     })?;
-                    let t_soft = Instant::now();
-                    let out = self.hard.run_on(
-                        &self.ctx,
-                        &view_buf,
-                        n,
-                        &tri_buf,
-                        gpu_tris.len(),
-                        &lv,
-                        desc.shadows.light_texels,
-                        Some(&sl),
-                    )?;
-                    let mut stats =
-                        soft_stats(&out, desc.shadows.light_texels, lv.face_count(), &sl);
-                    stats["wall_ms"] = serde_json::json!(t_soft.elapsed().as_secs_f64() * 1e3);
-                    let so = out.soft.expect("a soft run returns soft output");
+                    (lv, Some(sl))
+                }
+            };
+            // The view samples stay on the GPU: no upload between passes.
+            let t_light = Instant::now();
+            let out = self.hard.run_on(
+                &self.ctx,
+                &view_buf,
+                n,
+                &tri_buf,
+                gpu_tris.len(),
+                &lv,
+                desc.shadows.light_texels,
+                soft.as_ref(),
+            )?;
+            let faces = lv.face_count();
+            let mut stats = match &soft {
+                Some(sl) => soft_stats(&out, desc.shadows.light_texels, faces, sl),
+                None => hard_stats(&out, desc.shadows.light_texels, faces),
+            };
+            stats["wall_ms"] = serde_json::json!(t_light.elapsed().as_secs_f64() * 1e3);
+            let path = match &out.soft {
+                Some(so) => {
                     visibility.push(so.visibility.iter().map(|v| v.unwrap_or(0.0)).collect());
                     evaluated.push(so.visibility.iter().map(|v| v.is_some()).collect());
-                    light_stats.push(
-                        serde_json::json!({"light": k, "path": "gpu soft shadows", "stats": stats}),
-                    );
+                    "gpu soft shadows"
                 }
-            }
+                None => {
+                    visibility.push(
+                        out.lit
+                            .iter()
+                            .map(|l| if *l == Some(true) { 1.0 } else { 0.0 })
+                            .collect(),
+                    );
+                    evaluated.push(out.lit.iter().map(|l| l.is_some()).collect());
+                    "gpu hard shadows"
+                }
+            };
+            light_stats.push(serde_json::json!({"light": k, "path": path, "stats": stats}));
             light_samples.push(samples);
         }
         let t = Instant::now();

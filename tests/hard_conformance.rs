@@ -33,10 +33,13 @@
 use alias_free_shadows::light::{Distribution, Light, LightSamples, LightShape};
 use alias_free_shadows::oracle::{LightTarget, Oracle, ViewSample, ViewSamples};
 use alias_free_shadows::render::Engine;
-use alias_free_shadows::scene::file::{self, default_view, place_on_ground, SceneDescription};
+use alias_free_shadows::scene::file::{self, SceneDescription};
 use alias_free_shadows::scene::{Mesh, Scene};
 use alias_free_shadows::vulkan::ContextOptions;
 use glam::DVec3;
+
+mod common;
+use common::{engine_view_samples, shared_asset_scenes};
 
 /// Relative size of the documented epsilon band around shadow boundaries.
 const BAND: f64 = 1e-5;
@@ -72,20 +75,11 @@ fn segment_distance(p0: DVec3, p1: DVec3, q0: DVec3, q1: DVec3) -> f64 {
 fn near_closed_terminator(desc: &SceneDescription, s: &ViewSample, light: &Light) -> bool {
     let eps =
         TERMINATOR_ULPS * f32::EPSILON as f64 * (s.position - desc.camera.eye).abs().max_element();
-    let (end, towards): (DVec3, Box<dyn Fn(DVec3) -> DVec3>) = match &light.shape {
-        LightShape::Point { position } => {
-            let l = *position;
-            (l, Box::new(move |v| l - v))
-        }
-        LightShape::Directional { direction } => {
-            let d = *direction;
-            let (lo, hi) = desc.scene.bounds().unwrap();
-            (
-                s.position - d * (hi - lo).length() * 4.0,
-                Box::new(move |_| -d),
-            )
-        }
-        _ => unreachable!(),
+    let end = segment_end(desc, s, light);
+    // Towards the light from a point v.
+    let towards = |v: DVec3| match &light.shape {
+        LightShape::Directional { direction } => -*direction,
+        _ => end - v,
     };
     for m in desc.scene.meshes.iter().filter(|m| m.closed) {
         let mut first = std::collections::HashMap::new();
@@ -180,18 +174,6 @@ fn directional(direction: DVec3) -> Light {
         },
         ..point(DVec3::ZERO)
     }
-}
-
-/// The engine's view samples as the oracle sees them: camera-relative f32
-/// positions and normals converted back, exactly.
-fn engine_view_samples(oracle: &Oracle, desc: &SceneDescription) -> ViewSamples {
-    let eye = desc.camera.eye;
-    let mut view = oracle.primary_view_samples(&desc.camera);
-    for s in view.samples.iter_mut().flatten() {
-        s.position = eye + (s.position - eye).as_vec3().as_dvec3();
-        s.normal = s.normal.as_vec3().as_dvec3();
-    }
-    view
 }
 
 fn in_band(oracle: &Oracle, s: &ViewSample, light: &Light) -> bool {
@@ -340,32 +322,16 @@ fn builtins_conform_under_point_directional_and_all_around_lights() {
 
 #[test]
 fn shared_assets_on_a_ground_plane_conform() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets");
-    if !root.is_dir() {
+    let scenes = shared_asset_scenes();
+    if scenes.is_empty() {
         eprintln!("../shared/assets is absent: skipped");
         return;
     }
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
-    for model in [
-        "Lantern/Lantern.gltf",
-        "BoomBox/BoomBox.gltf",
-        "Suzanne/Suzanne.gltf",
-    ] {
-        let path = root.join(model);
-        let mut scene = alias_free_shadows::scene::gltf_load::load_gltf(&path).unwrap();
-        place_on_ground(&mut scene);
-        let (camera, light) = default_view(&scene);
-        let desc = sized(
-            SceneDescription {
-                name: model.into(),
-                scene,
-                camera,
-                lights: vec![light.clone()],
-                shadows: Default::default(),
-            },
-            256,
-        );
-        check(&mut engine, model, &desc, &light, 512);
+    for desc in scenes {
+        let desc = sized(desc, 256);
+        let light = desc.lights[0].clone();
+        check(&mut engine, &desc.name, &desc, &light, 512);
     }
     engine.context().check_validation().unwrap();
 }
@@ -504,34 +470,15 @@ fn rendered_frames_conform() {
             .map(|n| format!("builtin:{n}"))
             .collect::<Vec<_>>(),
         256,
-        true,
     );
 }
 
-fn rendered_frames(specs: &[String], size: u32, with_shared_assets: bool) {
+/// Renders every scene of `specs` and every shared model at `size`² and
+/// checks each frame against the oracle.
+fn rendered_frames(specs: &[String], size: u32) {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
     let mut scenes: Vec<SceneDescription> = specs.iter().map(|s| file::load(s).unwrap()).collect();
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets");
-    for model in [
-        "Lantern/Lantern.gltf",
-        "BoomBox/BoomBox.gltf",
-        "Suzanne/Suzanne.gltf",
-    ] {
-        let path = root.join(model);
-        if !with_shared_assets || !path.is_file() {
-            continue;
-        }
-        let mut scene = alias_free_shadows::scene::gltf_load::load_gltf(&path).unwrap();
-        place_on_ground(&mut scene);
-        let (camera, light) = default_view(&scene);
-        scenes.push(SceneDescription {
-            name: model.into(),
-            scene,
-            camera,
-            lights: vec![light],
-            shadows: Default::default(),
-        });
-    }
+    scenes.extend(shared_asset_scenes());
     for desc in scenes {
         let mut desc = sized(desc, size);
         desc.lights = vec![scene_light(&desc)];

@@ -3,25 +3,14 @@
 //! samples, per (pixel, light sample) pair.
 
 use alias_free_shadows::light::{Light, LightSamples, LightShape};
-use alias_free_shadows::oracle::{Oracle, ViewSamples};
+use alias_free_shadows::oracle::Oracle;
 use alias_free_shadows::render::Engine;
-use alias_free_shadows::scene::file::{
-    self, default_view, place_on_ground, SceneDescription, ShadowSettings, SoftMode,
-};
+use alias_free_shadows::scene::file::{self, SceneDescription, ShadowSettings, SoftMode};
 use alias_free_shadows::vulkan::ContextOptions;
 use glam::DVec3;
 
-/// The engine's view samples as the oracle sees them: camera-relative f32
-/// positions and normals converted back, exactly.
-fn engine_view_samples(oracle: &Oracle, desc: &SceneDescription) -> ViewSamples {
-    let eye = desc.camera.eye;
-    let mut view = oracle.primary_view_samples(&desc.camera);
-    for s in view.samples.iter_mut().flatten() {
-        s.position = eye + (s.position - eye).as_vec3().as_dvec3();
-        s.normal = s.normal.as_vec3().as_dvec3();
-    }
-    view
-}
+mod common;
+use common::{engine_view_samples, shared_asset_scenes};
 
 /// The light samples as the engine has them (camera-relative f32), back in world space.
 fn engine_light(light: &Light, eye: glam::DVec3) -> LightSamples {
@@ -128,27 +117,7 @@ fn scenes() -> Vec<SceneDescription> {
         .iter()
         .map(|n| file::load(&format!("builtin:{n}")).unwrap())
         .collect();
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets");
-    for model in [
-        "Lantern/Lantern.gltf",
-        "BoomBox/BoomBox.gltf",
-        "Suzanne/Suzanne.gltf",
-    ] {
-        let path = root.join(model);
-        if !path.is_file() {
-            continue;
-        }
-        let mut scene = alias_free_shadows::scene::gltf_load::load_gltf(&path).unwrap();
-        place_on_ground(&mut scene);
-        let (camera, light) = default_view(&scene);
-        out.push(SceneDescription {
-            name: model.into(),
-            scene,
-            camera,
-            lights: vec![light],
-            shadows: Default::default(),
-        });
-    }
+    out.extend(shared_asset_scenes());
     out
 }
 

@@ -1,0 +1,44 @@
+//! Helpers shared by the conformance tests.
+
+use alias_free_shadows::oracle::{Oracle, ViewSamples};
+use alias_free_shadows::scene::file::{default_view, place_on_ground, SceneDescription};
+
+/// The `../shared/assets` models (those present), each on a ground plane
+/// with its default camera and light.
+pub fn shared_asset_scenes() -> Vec<SceneDescription> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets");
+    let mut out = Vec::new();
+    for model in [
+        "Lantern/Lantern.gltf",
+        "BoomBox/BoomBox.gltf",
+        "Suzanne/Suzanne.gltf",
+    ] {
+        let path = root.join(model);
+        if !path.is_file() {
+            continue;
+        }
+        let mut scene = alias_free_shadows::scene::gltf_load::load_gltf(&path).unwrap();
+        place_on_ground(&mut scene);
+        let (camera, light) = default_view(&scene);
+        out.push(SceneDescription {
+            name: model.into(),
+            scene,
+            camera,
+            lights: vec![light],
+            shadows: Default::default(),
+        });
+    }
+    out
+}
+
+/// The engine's view samples as the oracle sees them: camera-relative f32
+/// positions and normals converted back, exactly.
+pub fn engine_view_samples(oracle: &Oracle, desc: &SceneDescription) -> ViewSamples {
+    let eye = desc.camera.eye;
+    let mut view = oracle.primary_view_samples(&desc.camera);
+    for s in view.samples.iter_mut().flatten() {
+        s.position = eye + (s.position - eye).as_vec3().as_dvec3();
+        s.normal = s.normal.as_vec3().as_dvec3();
+    }
+    view
+}
