@@ -10,6 +10,58 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+/// Extra compilations of a shader with preprocessor definitions, for code
+/// that must be compiled out rather than skipped by a branch (lavapipe pays
+/// for guarded code it does not run): (shader stem, constant, definitions).
+type Variant = (
+    &'static str,
+    &'static str,
+    &'static [(&'static str, &'static str)],
+);
+const VARIANTS: &[Variant] = &[
+    ("occlusion_soft", "OCCLUSION_SOFT_EXACT", &[("EXACT", "1")]),
+    (
+        "occlusion_soft",
+        "OCCLUSION_SOFT_LUT1",
+        &[("LUT_BLOCKS", "1")],
+    ),
+    (
+        "occlusion_soft",
+        "OCCLUSION_SOFT_LUT2",
+        &[("LUT_BLOCKS", "2")],
+    ),
+    (
+        "occlusion_soft",
+        "OCCLUSION_SOFT_LUT3",
+        &[("LUT_BLOCKS", "3")],
+    ),
+    (
+        "occlusion_soft",
+        "OCCLUSION_SOFT_LUT4",
+        &[("LUT_BLOCKS", "4")],
+    ),
+    (
+        "occlusion_soft",
+        "OCCLUSION_SOFT_LUT5",
+        &[("LUT_BLOCKS", "5")],
+    ),
+    (
+        "occlusion_soft",
+        "OCCLUSION_SOFT_LUT6",
+        &[("LUT_BLOCKS", "6")],
+    ),
+    (
+        "occlusion_soft",
+        "OCCLUSION_SOFT_LUT7",
+        &[("LUT_BLOCKS", "7")],
+    ),
+    (
+        "occlusion_soft",
+        "OCCLUSION_SOFT_LUT8",
+        &[("LUT_BLOCKS", "8")],
+    ),
+];
+
 fn main() {
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("CARGO_MANIFEST_DIR"));
     let shader_dir = manifest.join("shaders");
@@ -41,34 +93,55 @@ fn main() {
             "frag" => shaderc::ShaderKind::Fragment,
             _ => continue,
         };
-        match compile(&compiler, &shader_dir, path, kind) {
-            Ok(words) => {
-                let stem = path.file_stem().unwrap().to_string_lossy();
-                // Compute shaders keep their plain names; graphics stages get
-                // the stage as a suffix (`view_samples.vert` -> VIEW_SAMPLES_VERT).
-                let (spv_name, name) = if ext == "comp" {
-                    (format!("{stem}.spv"), const_name(&stem))
-                } else {
-                    (
-                        format!("{stem}.{ext}.spv"),
-                        const_name(&format!("{stem}_{ext}")),
-                    )
-                };
-                let spv_path = out_dir.join(spv_name);
-                let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-                std::fs::write(&spv_path, bytes)
-                    .unwrap_or_else(|e| panic!("cannot write {}: {e}", spv_path.display()));
-                writeln!(generated, "/// SPIR-V of `shaders/{stem}.{ext}`.").unwrap();
-                write!(generated, "pub const {name}: &[u32] = &[").unwrap();
-                for (i, w) in words.iter().enumerate() {
-                    if i % 8 == 0 {
-                        generated.push_str("\n    ");
+        let stem = path.file_stem().unwrap().to_string_lossy().to_string();
+        // Compute shaders keep their plain names; graphics stages get the
+        // stage as a suffix (`view_samples.vert` -> VIEW_SAMPLES_VERT).
+        let (spv_name, name) = if ext == "comp" {
+            (format!("{stem}.spv"), const_name(&stem))
+        } else {
+            (
+                format!("{stem}.{ext}.spv"),
+                const_name(&format!("{stem}_{ext}")),
+            )
+        };
+        let mut builds = vec![(spv_name, name, Vec::new())];
+        for (v_stem, v_name, defines) in VARIANTS.iter().filter(|v| v.0 == stem && ext == "comp") {
+            builds.push((
+                format!("{v_stem}.{}.spv", v_name.to_lowercase()),
+                v_name.to_string(),
+                defines.to_vec(),
+            ));
+        }
+        for (spv_name, name, defines) in builds {
+            match compile(&compiler, &shader_dir, path, kind, &defines) {
+                Ok(words) => {
+                    let spv_path = out_dir.join(spv_name);
+                    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+                    std::fs::write(&spv_path, bytes)
+                        .unwrap_or_else(|e| panic!("cannot write {}: {e}", spv_path.display()));
+                    let with: Vec<String> =
+                        defines.iter().map(|(k, v)| format!("{k}={v}")).collect();
+                    if with.is_empty() {
+                        writeln!(generated, "/// SPIR-V of `shaders/{stem}.{ext}`.").unwrap();
+                    } else {
+                        writeln!(
+                            generated,
+                            "/// SPIR-V of `shaders/{stem}.{ext}` with {}.",
+                            with.join(", ")
+                        )
+                        .unwrap();
                     }
-                    write!(generated, "0x{w:08x}, ").unwrap();
+                    write!(generated, "pub const {name}: &[u32] = &[").unwrap();
+                    for (i, w) in words.iter().enumerate() {
+                        if i % 8 == 0 {
+                            generated.push_str("\n    ");
+                        }
+                        write!(generated, "0x{w:08x}, ").unwrap();
+                    }
+                    generated.push_str("\n];\n\n");
                 }
-                generated.push_str("\n];\n\n");
+                Err(message) => errors.push(message),
             }
-            Err(message) => errors.push(message),
         }
     }
 
@@ -88,6 +161,7 @@ fn compile(
     shader_dir: &Path,
     path: &Path,
     kind: shaderc::ShaderKind,
+    defines: &[(&str, &str)],
 ) -> Result<Vec<u32>, String> {
     let source = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut options = shaderc::CompileOptions::new().map_err(|e| e.to_string())?;
@@ -100,6 +174,9 @@ fn compile(
     options.set_source_language(shaderc::SourceLanguage::GLSL);
     options.set_optimization_level(shaderc::OptimizationLevel::Performance);
     options.set_warnings_as_errors();
+    for (k, v) in defines {
+        options.add_macro_definition(k, Some(v));
+    }
     let include_dir = shader_dir.to_path_buf();
     options.set_include_callback(move |requested, _kind, requesting, _depth| {
         // Headers are looked up next to the including file first, then in shaders/.

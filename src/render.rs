@@ -280,6 +280,9 @@ fn soft_stats(
     st["blocking_tests"] = serde_json::json!(c[counter::BLOCKING]);
     st["blocking_share"] =
         serde_json::json!(c[counter::BLOCKING] as f64 / c[counter::TESTS].max(1) as f64);
+    // The look-up texture is built once per light shape and reused: its
+    // build time (ms.lut_build) appears only in the frame that built it.
+    st["lut_built"] = serde_json::json!(out.soft.as_ref().is_some_and(|s| s.lut_built));
     st
 }
 

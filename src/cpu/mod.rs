@@ -6,4 +6,5 @@ pub mod hard_shadows;
 pub mod light_view;
 pub mod occlusion;
 pub mod scan;
+pub mod soft;
 pub mod texel_lists;

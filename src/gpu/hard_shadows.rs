@@ -68,6 +68,9 @@ pub struct SoftOutput {
     pub visible: Vec<u32>,
     /// Words per view sample in `visible` (4 per 128-sample block).
     pub mask_words: usize,
+    /// Whether this run built the plane look-up texture (`lut_build` in the
+    /// timings); false in exact mode and when the last one was reused.
+    pub lut_built: bool,
 }
 
 /// A light with extent as the soft-shadow passes see it (paper §4): its
@@ -129,10 +132,21 @@ pub struct HardShadowPass {
     resolve: ComputePipeline,
     tile_units_exact: ComputePipeline,
     lut_build: ComputePipeline,
-    occlusion_lut: ComputePipeline,
+    /// LUT-mode occlusion, one pipeline per number of 128-sample blocks (1 to 8).
+    occlusion_lut: Vec<ComputePipeline>,
     occlusion_exact: ComputePipeline,
     soft_resolve: ComputePipeline,
     scan: ScanPass,
+    /// The last plane look-up texture built, kept across frames: it depends
+    /// only on the light's normalized samples and the resolution.
+    plane_lut: Option<PlaneLut>,
+}
+
+/// A plane look-up texture on the device and what it was built from.
+struct PlaneLut {
+    /// Bits of the normalized samples, then the resolution.
+    key: Vec<u32>,
+    buffer: Buffer,
 }
 
 /// Occlusion chunks of the exact soft mode (pairs, list entries): each test
@@ -217,18 +231,38 @@ impl HardShadowPass {
                 &[sb; 3],
                 &EXACT_CHUNKS,
             )?,
-            lut_build: make("lut_build", shaders::LUT_BUILD, &[sb, ub], &[])?,
-            occlusion_lut: make(
-                "occlusion_soft_lut",
-                shaders::OCCLUSION_SOFT,
-                &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb],
-                &[(4, 0)],
+            lut_build: make(
+                "lut_build",
+                shaders::LUT_BUILD,
+                &[DescriptorKind::StorageTexelBuffer, ub],
+                &[],
             )?,
+            occlusion_lut: [
+                shaders::OCCLUSION_SOFT_LUT1,
+                shaders::OCCLUSION_SOFT_LUT2,
+                shaders::OCCLUSION_SOFT_LUT3,
+                shaders::OCCLUSION_SOFT_LUT4,
+                shaders::OCCLUSION_SOFT_LUT5,
+                shaders::OCCLUSION_SOFT_LUT6,
+                shaders::OCCLUSION_SOFT_LUT7,
+                shaders::OCCLUSION_SOFT_LUT8,
+            ]
+            .iter()
+            .enumerate()
+            .map(|(b, spirv)| {
+                make(
+                    &format!("occlusion_soft_lut{}", b + 1),
+                    spirv,
+                    &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb],
+                    &[],
+                )
+            })
+            .collect::<Result<_>>()?,
             occlusion_exact: make(
                 "occlusion_soft_exact",
-                shaders::OCCLUSION_SOFT,
+                shaders::OCCLUSION_SOFT_EXACT,
                 &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb],
-                &[EXACT_CHUNKS[0], EXACT_CHUNKS[1], (4, 1)],
+                &EXACT_CHUNKS,
             )?,
             soft_resolve: make(
                 "soft_resolve",
@@ -237,6 +271,7 @@ impl HardShadowPass {
                 &[],
             )?,
             scan: ScanPass::new(ctx)?,
+            plane_lut: None,
         })
     }
 
@@ -437,10 +472,86 @@ impl HardShadowPass {
             }
             b
         };
-        let lut_texels = soft
-            .filter(|sl| !sl.exact)
-            .map_or(1, |sl| (sl.lut_resolution as u64).pow(3));
-        let lut = buffer("plane_lut", 16 * lut_texels)?;
+        // LUT mode: the plane look-up texture of every block, cached across
+        // frames (it depends only on the normalized samples and resolution).
+        let lut_key = soft.filter(|sl| !sl.exact).map(|sl| {
+            let (c, r) = sl.bounds();
+            let ys = crate::cpu::soft::normalized_samples(&sl.samples, c, r);
+            let mut key: Vec<u32> = ys
+                .iter()
+                .flat_map(|y| y.to_array().map(f32::to_bits))
+                .collect();
+            key.push(sl.lut_resolution);
+            (key, ys)
+        });
+        let mut lut_built = false;
+        let mut lut_timings = Vec::new();
+        if let (Some(sl), Some((key, ys))) = (soft, &lut_key) {
+            let blocks = sl.samples.len().div_ceil(128) as u64;
+            let lut_texels = (sl.lut_resolution as u64).pow(3) * blocks;
+            let max_texels = ctx.info().limits.max_texel_buffer_elements as u64;
+            if lut_texels > max_texels {
+                return Err(Error::InvalidInput(format!(
+                    "a {}³ look-up texture for {} light samples has {lut_texels} texels; this device binds at most {max_texels} (lower lut_resolution or the samples)",
+                    sl.lut_resolution,
+                    sl.samples.len()
+                )));
+            }
+            if self.plane_lut.as_ref().map(|l| &l.key) != Some(key) {
+                self.plane_lut = None; // free the old one first
+                let lut = ctx.create_buffer(BufferDesc::storage("plane_lut", 16 * lut_texels))?;
+                let mut d =
+                    BufferDesc::storage("normalized_light_samples", 16 * MAX_SOFT_SAMPLES as u64);
+                d.usage |= vk::BufferUsageFlags::UNIFORM_BUFFER;
+                let ys_ubo = ctx.create_buffer(d)?;
+                let v: Vec<[f32; 4]> = ys.iter().map(|y| [y.x, y.y, y.z, 0.0]).collect();
+                ctx.upload_staged(&ys_ubo, 0, &v)?;
+                let lut_n = (sl.lut_resolution as u64).pow(3) as u32;
+                let mut prof = Profiler::new(ctx, 2)?;
+                let mut lut_walls = walls_wanted(ctx).then(Vec::new);
+                let mut rec = ctx.begin()?;
+                timed(
+                    ctx,
+                    &mut prof,
+                    &mut rec,
+                    &mut lut_walls,
+                    "lut_build",
+                    |rec| {
+                        rec.dispatch(
+                            &self.lut_build,
+                            &[
+                                Binding::storage_texel(&lut, RGBA32UI),
+                                Binding::uniform(&ys_ubo),
+                            ],
+                            pc,
+                            groups(lut_n),
+                        )?;
+                        rec.barrier(Barrier::ComputeToCompute);
+                        Ok(())
+                    },
+                )?;
+                ctx.submit_and_wait(rec)?;
+                ctx.check_validation()?;
+                lut_timings = match lut_walls {
+                    Some(w) => w,
+                    None => prof.results()?,
+                };
+                self.plane_lut = Some(PlaneLut {
+                    key: key.clone(),
+                    buffer: lut,
+                });
+                lut_built = true;
+            }
+        }
+        let dummy_lut = buffer("plane_lut_unused", 16)?;
+        let lut = match (&lut_key, &self.plane_lut) {
+            (Some(_), Some(l)) => &l.buffer,
+            _ => &dummy_lut,
+        };
+        let lut_bytes = match (&lut_key, &self.plane_lut) {
+            (Some(_), Some(l)) => l.buffer.size(),
+            _ => 0,
+        };
 
         let mut fit_init = [0u32; 48];
         for f in 0..6 {
@@ -450,16 +561,7 @@ impl HardShadowPass {
         ctx.upload_staged(&fit, 0, &fit_init)?;
 
         // ---- Submission 1: lists and caster setup, tile counts.
-        // lavapipe's timestamps do not bracket the passes of one command
-        // buffer (measured: 11 ms reported for a 1.4 s run), so on a CPU
-        // device each pass is timed on the host as its own submission.
-        // AFS_PROFILE_WALL=1 / 0 forces either way.
-        let wall = match std::env::var("AFS_PROFILE_WALL").as_deref() {
-            Ok("1") => true,
-            Ok("0") => false,
-            _ => ctx.info().is_cpu(),
-        };
-        let mut walls = wall.then(Vec::new);
+        let mut walls = walls_wanted(ctx).then(Vec::new);
         let mut prof1 = Profiler::new(ctx, 16)?;
         let mut rec = ctx.begin()?;
         rec.fill_buffer(counts.whole(), 0)?;
@@ -612,7 +714,7 @@ impl HardShadowPass {
         // ---- Submission 2: tile lists, occlusion, resolve. The pair total
         // is read back first so that the tile-pair array is sized exactly.
         let tile_pairs = buffer("tile_pairs", 4 * pairs_total as u64)?;
-        let mut prof2 = Profiler::new(ctx, 8)?;
+        let mut prof2 = Profiler::new(ctx, 4 + 8 * MAX_SOFT_SAMPLES.div_ceil(128) as u32)?;
         let mut rec = ctx.begin()?;
         rec.fill_buffer(tile_counts.whole(), 0)?;
         rec.fill_buffer(shadowed.whole(), 0)?;
@@ -648,28 +750,17 @@ impl HardShadowPass {
             let occlusion = if sl.exact {
                 &self.occlusion_exact
             } else {
-                &self.occlusion_lut
+                &self.occlusion_lut[blocks as usize - 1]
             };
-            // One pass per 128-sample block: its LUT, then its occlusion.
-            for block in 0..blocks {
+            // LUT mode: one pass for every block (one look-up index serves
+            // all); exact mode: one pass per 128-sample block.
+            let passes = if sl.exact { blocks } else { 1 };
+            for block in 0..passes {
                 let push_b = HardPush {
                     soft: [block, push.soft[1], push.soft[2], push.soft[3]],
                     ..push2
                 };
                 let pcb = bytemuck::bytes_of(&push_b);
-                if !sl.exact {
-                    let lut_n = (sl.lut_resolution as u64).pow(3) as u32;
-                    timed(ctx, &mut prof2, &mut rec, &mut walls, "lut_build", |rec| {
-                        rec.dispatch(
-                            &self.lut_build,
-                            &[s(&lut), Binding::uniform(&light_ubo)],
-                            pcb,
-                            groups(lut_n),
-                        )?;
-                        rec.barrier(Barrier::ComputeToCompute);
-                        Ok(())
-                    })?;
-                }
                 timed(ctx, &mut prof2, &mut rec, &mut walls, "occlusion", |rec| {
                     rec.dispatch(
                         occlusion,
@@ -685,12 +776,11 @@ impl HardShadowPass {
                             s(&counters),
                             s(&unit_offsets),
                             Binding::uniform(&light_ubo),
-                            Binding::uniform_texel(&lut, RGBA32UI),
+                            Binding::uniform_texel(lut, RGBA32UI),
                         ],
                         pcb,
                         groups_2d(units.max(1)),
                     )?;
-                    // The next block's LUT build overwrites what this read.
                     rec.barrier(Barrier::ComputeToCompute);
                     Ok(())
                 })?;
@@ -774,20 +864,21 @@ impl HardShadowPass {
                         .collect(),
                     visible: vis,
                     mask_words: words as usize,
+                    lut_built,
                 })
             }
             None => None,
         };
         let c: Vec<u32> = ctx.read_buffer_staged(&counters, 0, counter::COUNT)?;
         let list_lengths: Vec<u32> = ctx.read_buffer_staged(&counts, 0, texels as usize)?;
-        let timings = match walls {
-            Some(w) => w,
+        let mut timings = lut_timings;
+        match walls {
+            Some(w) => timings.extend(w),
             None => {
-                let mut t = prof1.results()?;
-                t.extend(prof2.results()?);
-                t
+                timings.extend(prof1.results()?);
+                timings.extend(prof2.results()?);
             }
-        };
+        }
         let mut counters_out = [0u32; counter::COUNT];
         counters_out.copy_from_slice(&c);
         Ok(HardShadowOutput {
@@ -798,7 +889,7 @@ impl HardShadowPass {
             counters: counters_out,
             list_lengths,
             timings,
-            buffer_bytes: bytes,
+            buffer_bytes: bytes + lut_bytes,
             soft: soft_out,
         })
     }
@@ -806,6 +897,18 @@ impl HardShadowPass {
 
 fn s(b: &Buffer) -> Binding<'_> {
     Binding::storage(b)
+}
+
+/// Whether passes are timed on the host, each as its own submission:
+/// lavapipe's timestamps do not bracket the passes of one command buffer
+/// (measured: 11 ms reported for a 1.4 s run). AFS_PROFILE_WALL=1 / 0 forces
+/// either way.
+fn walls_wanted(ctx: &GpuContext) -> bool {
+    match std::env::var("AFS_PROFILE_WALL").as_deref() {
+        Ok("1") => true,
+        Ok("0") => false,
+        _ => ctx.info().is_cpu(),
+    }
 }
 
 /// Records `f` between the profiler's timestamps for `name`.
