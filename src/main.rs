@@ -83,7 +83,7 @@ struct RenderArgs {
     /// Override the number of samples of every area or volumetric light (1 to 1024).
     #[arg(long)]
     samples: Option<u32>,
-    /// Light-texel map resolution (overrides [shadows] light_texels).
+    /// Light-texel map resolution (overrides [shadows] light_texels and soft_light_texels).
     #[arg(long)]
     light_texels: Option<u32>,
     /// Soft-shadow mode: lut or exact (overrides [shadows] mode).
@@ -131,6 +131,7 @@ impl RenderArgs {
         }
         if let Some(t) = self.light_texels {
             desc.shadows.light_texels = t;
+            desc.shadows.soft_light_texels = t;
         }
         if let Some(m) = &self.mode {
             desc.shadows.mode = if m == "exact" {

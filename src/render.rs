@@ -439,10 +439,15 @@ impl Engine {
             }));
         }
         let (vs, ts) = gpu_inputs(&with_ids, &gpu_triangles(scene, eye));
-        let out = self
-            .hard
-            .run(&self.ctx, &vs, &ts, &lv, settings.light_texels, Some(&sl))?;
-        let stats = soft_stats(&out, settings.light_texels, lv.face_count(), &sl);
+        let out = self.hard.run(
+            &self.ctx,
+            &vs,
+            &ts,
+            &lv,
+            settings.soft_light_texels,
+            Some(&sl),
+        )?;
+        let stats = soft_stats(&out, settings.soft_light_texels, lv.face_count(), &sl);
         let so = out.soft.expect("a soft run returns soft output");
         Ok(SoftShadowResult {
             visibility: so.visibility,
@@ -450,6 +455,23 @@ impl Engine {
             mask_words: so.mask_words,
             stats,
         })
+    }
+
+    /// The plane look-up texture the GPU builds for `light` (a light with
+    /// extent) with `settings`' resolution: per texel, then per 128-sample
+    /// block, the bits of the samples behind the texel's plane. For tests
+    /// against [`crate::cpu::soft::build_lut`].
+    pub fn plane_lut_bits(
+        &mut self,
+        light: &Light,
+        eye: DVec3,
+        settings: &ShadowSettings,
+    ) -> Result<Vec<[u32; 4]>> {
+        light.validate()?;
+        let (sl, _) = soft_light(light, eye, settings).ok_or_else(|| {
+            crate::Error::InvalidInput("a look-up texture needs a light with extent".into())
+        })?;
+        self.hard.plane_lut_bits(&self.ctx, &sl)
     }
 
     /// [`Engine::hard_shadows`] on inputs already in GPU form.
@@ -533,6 +555,10 @@ impl Engine {
             };
             // The view samples stay on the GPU: no upload between passes.
             let t_light = Instant::now();
+            let texels = match soft {
+                Some(_) => desc.shadows.soft_light_texels,
+                None => desc.shadows.light_texels,
+            };
             let out = self.hard.run_on(
                 &self.ctx,
                 &view_buf,
@@ -540,13 +566,13 @@ impl Engine {
                 &tri_buf,
                 gpu_tris.len(),
                 &lv,
-                desc.shadows.light_texels,
+                texels,
                 soft.as_ref(),
             )?;
             let faces = lv.face_count();
             let mut stats = match &soft {
-                Some(sl) => soft_stats(&out, desc.shadows.light_texels, faces, sl),
-                None => hard_stats(&out, desc.shadows.light_texels, faces),
+                Some(sl) => soft_stats(&out, texels, faces, sl),
+                None => hard_stats(&out, texels, faces),
             };
             stats["wall_ms"] = serde_json::json!(t_light.elapsed().as_secs_f64() * 1e3);
             let path = match &out.soft {

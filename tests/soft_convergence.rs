@@ -52,7 +52,12 @@ fn visibility_converges_to_the_oracle() {
         .iter()
         .map(|n| (file::load(&format!("builtin:{n}")).unwrap(), true))
         .collect();
-    scenes.extend(shared_asset_scenes().into_iter().take(1).map(|d| (d, false)));
+    scenes.extend(
+        shared_asset_scenes()
+            .into_iter()
+            .take(1)
+            .map(|d| (d, false)),
+    );
     for (mut desc, asserted) in scenes {
         desc.camera.width = SIZE;
         desc.camera.height = SIZE;

@@ -275,6 +275,87 @@ impl HardShadowPass {
         })
     }
 
+    /// Makes the plane look-up texture of `light` current: builds it unless
+    /// the last one was built from the same normalized samples and
+    /// resolution. Returns whether it was built and the build's timing.
+    fn ensure_plane_lut(
+        &mut self,
+        ctx: &GpuContext,
+        light: &SoftLight,
+    ) -> Result<(bool, Vec<PassTiming>)> {
+        let (centre, radius) = light.bounds();
+        let ys = crate::cpu::soft::normalized_samples(&light.samples, centre, radius);
+        let mut key: Vec<u32> = ys
+            .iter()
+            .flat_map(|y| y.to_array().map(f32::to_bits))
+            .collect();
+        key.push(light.lut_resolution);
+        if self.plane_lut.as_ref().is_some_and(|l| l.key == key) {
+            return Ok((false, Vec::new()));
+        }
+        let res = light.lut_resolution as u64;
+        let texels = res.pow(3) * light.samples.len().div_ceil(128) as u64;
+        let max_texels = ctx.info().limits.max_texel_buffer_elements as u64;
+        if texels > max_texels {
+            return Err(Error::InvalidInput(format!(
+                "a {res}³ look-up texture for {} light samples has {texels} texels; this device binds at most {max_texels} (lower lut_resolution or the samples)",
+                light.samples.len()
+            )));
+        }
+        self.plane_lut = None; // the old table is freed before the new one is made
+        let buffer = ctx.create_buffer(BufferDesc::storage("plane_lut", 16 * texels))?;
+        let mut d = BufferDesc::storage("normalized_light_samples", 16 * MAX_SOFT_SAMPLES as u64);
+        d.usage |= vk::BufferUsageFlags::UNIFORM_BUFFER;
+        let ys_ubo = ctx.create_buffer(d)?;
+        let v: Vec<[f32; 4]> = ys.iter().map(|y| [y.x, y.y, y.z, 0.0]).collect();
+        ctx.upload_staged(&ys_ubo, 0, &v)?;
+        let push = HardPush {
+            soft: [0, light.samples.len() as u32, light.lut_resolution, 0],
+            ..Default::default()
+        };
+        let mut prof = Profiler::new(ctx, 2)?;
+        let mut walls = walls_wanted(ctx).then(Vec::new);
+        let mut rec = ctx.begin()?;
+        timed(ctx, &mut prof, &mut rec, &mut walls, "lut_build", |rec| {
+            rec.dispatch(
+                &self.lut_build,
+                &[
+                    Binding::storage_texel(&buffer, RGBA32UI),
+                    Binding::uniform(&ys_ubo),
+                ],
+                bytemuck::bytes_of(&push),
+                groups(res.pow(3) as u32),
+            )?;
+            rec.barrier(Barrier::ComputeToHost);
+            Ok(())
+        })?;
+        ctx.submit_and_wait(rec)?;
+        ctx.check_validation()?;
+        let timings = match walls {
+            Some(w) => w,
+            None => prof.results()?,
+        };
+        self.plane_lut = Some(PlaneLut { key, buffer });
+        Ok((true, timings))
+    }
+
+    /// The plane look-up texture of `light` as the GPU builds it (for the
+    /// CPU twin's test): per texel, then per 128-sample block, the bits of
+    /// the samples behind the texel's plane ([`crate::cpu::soft::build_lut`]).
+    pub fn plane_lut_bits(&mut self, ctx: &GpuContext, light: &SoftLight) -> Result<Vec<[u32; 4]>> {
+        self.ensure_plane_lut(ctx, light)?;
+        let lut = self
+            .plane_lut
+            .as_ref()
+            .expect("ensure_plane_lut keeps a table");
+        let words: Vec<u32> =
+            ctx.read_buffer_staged(&lut.buffer, 0, (lut.buffer.size() / 4) as usize)?;
+        Ok(words
+            .chunks_exact(4)
+            .map(|w| [w[0], w[1], w[2], w[3]])
+            .collect())
+    }
+
     /// Computes hard-shadow visibility of `view_samples` (camera-relative)
     /// from `light` with the scene's `triangles` over `resolution`² light
     /// texels per face (uploads both, then [`HardShadowPass::run_on`]).
@@ -474,84 +555,19 @@ impl HardShadowPass {
         };
         // LUT mode: the plane look-up texture of every block, cached across
         // frames (it depends only on the normalized samples and resolution).
-        let lut_key = soft.filter(|sl| !sl.exact).map(|sl| {
-            let (c, r) = sl.bounds();
-            let ys = crate::cpu::soft::normalized_samples(&sl.samples, c, r);
-            let mut key: Vec<u32> = ys
-                .iter()
-                .flat_map(|y| y.to_array().map(f32::to_bits))
-                .collect();
-            key.push(sl.lut_resolution);
-            (key, ys)
-        });
-        let mut lut_built = false;
-        let mut lut_timings = Vec::new();
-        if let (Some(sl), Some((key, ys))) = (soft, &lut_key) {
-            let blocks = sl.samples.len().div_ceil(128) as u64;
-            let lut_texels = (sl.lut_resolution as u64).pow(3) * blocks;
-            let max_texels = ctx.info().limits.max_texel_buffer_elements as u64;
-            if lut_texels > max_texels {
-                return Err(Error::InvalidInput(format!(
-                    "a {}³ look-up texture for {} light samples has {lut_texels} texels; this device binds at most {max_texels} (lower lut_resolution or the samples)",
-                    sl.lut_resolution,
-                    sl.samples.len()
-                )));
-            }
-            if self.plane_lut.as_ref().map(|l| &l.key) != Some(key) {
-                self.plane_lut = None; // free the old one first
-                let lut = ctx.create_buffer(BufferDesc::storage("plane_lut", 16 * lut_texels))?;
-                let mut d =
-                    BufferDesc::storage("normalized_light_samples", 16 * MAX_SOFT_SAMPLES as u64);
-                d.usage |= vk::BufferUsageFlags::UNIFORM_BUFFER;
-                let ys_ubo = ctx.create_buffer(d)?;
-                let v: Vec<[f32; 4]> = ys.iter().map(|y| [y.x, y.y, y.z, 0.0]).collect();
-                ctx.upload_staged(&ys_ubo, 0, &v)?;
-                let lut_n = (sl.lut_resolution as u64).pow(3) as u32;
-                let mut prof = Profiler::new(ctx, 2)?;
-                let mut lut_walls = walls_wanted(ctx).then(Vec::new);
-                let mut rec = ctx.begin()?;
-                timed(
-                    ctx,
-                    &mut prof,
-                    &mut rec,
-                    &mut lut_walls,
-                    "lut_build",
-                    |rec| {
-                        rec.dispatch(
-                            &self.lut_build,
-                            &[
-                                Binding::storage_texel(&lut, RGBA32UI),
-                                Binding::uniform(&ys_ubo),
-                            ],
-                            pc,
-                            groups(lut_n),
-                        )?;
-                        rec.barrier(Barrier::ComputeToCompute);
-                        Ok(())
-                    },
-                )?;
-                ctx.submit_and_wait(rec)?;
-                ctx.check_validation()?;
-                lut_timings = match lut_walls {
-                    Some(w) => w,
-                    None => prof.results()?,
-                };
-                self.plane_lut = Some(PlaneLut {
-                    key: key.clone(),
-                    buffer: lut,
-                });
-                lut_built = true;
-            }
-        }
+        let lut_mode = soft.filter(|sl| !sl.exact);
+        let (lut_built, lut_timings) = match lut_mode {
+            Some(sl) => self.ensure_plane_lut(ctx, sl)?,
+            None => (false, Vec::new()),
+        };
         let dummy_lut = buffer("plane_lut_unused", 16)?;
-        let lut = match (&lut_key, &self.plane_lut) {
+        let lut = match (lut_mode, &self.plane_lut) {
             (Some(_), Some(l)) => &l.buffer,
             _ => &dummy_lut,
         };
-        let lut_bytes = match (&lut_key, &self.plane_lut) {
-            (Some(_), Some(l)) => l.buffer.size(),
-            _ => 0,
-        };
+        let lut_bytes = lut_mode
+            .and(self.plane_lut.as_ref())
+            .map_or(0, |l| l.buffer.size());
 
         let mut fit_init = [0u32; 48];
         for f in 0..6 {
