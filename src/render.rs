@@ -1,12 +1,14 @@
-//! A frame, top to bottom. Until the GPU passes exist, the frame's
-//! visibility comes from the CPU oracle ([`render_reference`]); the GPU
-//! pipeline will list its passes here in the same order:
+//! A frame, top to bottom ([`Engine::render`]): the GPU's passes in order
+//! (the CPU oracle's frame, [`render_reference`], is the reference):
 //!
 //! 1. view samples (what the camera sees);
-//! 2. per-light-texel lists of view samples (count, scan, scatter);
-//! 3. each caster's influence region, conservatively rasterized;
-//! 4. occlusion of every listed view sample by every covering caster;
+//! 2. per light: per-light-texel lists of view samples (count, scan, scatter);
+//! 3. each caster's influence region, conservatively rasterized (binned);
+//! 4. occlusion of every listed view sample by every covering caster (one
+//!    bit, or a light-sample bitmask from the plane look-up texture);
 //! 5. visibility = visible light samples / light samples, then shading.
+//!
+//! Steps 2–5 are [`crate::gpu::hard_shadows::HardShadowPass::run_on`].
 
 use std::time::Instant;
 
