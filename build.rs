@@ -19,6 +19,11 @@ type Variant = (
     &'static [(&'static str, &'static str)],
 );
 const VARIANTS: &[Variant] = &[
+    (
+        "tile_units",
+        "TILE_UNITS_SAMPLE_LANES",
+        &[("SAMPLE_LANES", "1")],
+    ),
     ("occlusion_soft", "OCCLUSION_SOFT_EXACT", &[("EXACT", "1")]),
     (
         "occlusion_soft",

@@ -163,6 +163,15 @@ float key_float(uint k) {
     return uintBitsToFloat((k & 0x80000000u) != 0u ? (k & 0x7fffffffu) : ~k);
 }
 
+// A texel's list index: tile-major (64 texels per tile, row-major inside),
+// so that one tile's samples are contiguous in the lists and the soft
+// occlusion can give each lane one sample. pc.more: y tiles per row, z
+// tiles per face.
+uint texel_index(uint face, uvec2 t) {
+    uvec2 tile = t / TILE;
+    return ((face * pc.more.z + tile.y * pc.more.y + tile.x) * TILE + t.y % TILE) * TILE + t.x % TILE;
+}
+
 // The texel of a projected point, clamped to the map (cpu::light_view::texel_of).
 uvec2 texel_of(vec4 window, float x, float y, uint resolution) {
     float m = float(resolution) - 1.0;

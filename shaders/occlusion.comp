@@ -58,7 +58,7 @@ void main() {
     end = min(end, begin + OCC_PAIR_CHUNK);
     uint tests = 0u, visited = 0u;
     if (texel.x < res && texel.y < res && begin != end) {
-        uint t = face * res * res + texel.y * res + texel.x;
+        uint t = texel_index(face, texel);
         uint count = counts[t];
         uint list_begin = offsets[t] + min(count, sample_chunk * OCC_SAMPLE_CHUNK);
         uint list_end = offsets[t] + min(count, (sample_chunk + 1u) * OCC_SAMPLE_CHUNK);

@@ -1,8 +1,8 @@
 #version 450
-// Soft pass: occlusion (paper §4.2). Work units as in the hard occlusion
-// pass (tile, chunk of pairs, chunk of list entries), one invocation per
-// light texel; for each listed view sample x of the texel's chunk, the light
-// samples that each caster T of the chunk blocks: the AND of "behind T's
+// Soft pass: occlusion (paper §4.2). Work units: (tile, chunk of
+// OCC_PAIR_CHUNK pairs, chunk of 64 of the tile's listed samples), one
+// invocation per listed view sample x; for x, the light samples that each
+// caster T of the chunk whose influence region covers x's texel blocks: the AND of "behind T's
 // supporting plane, seen from x" and "inside the plane through x and each
 // edge of T". First the four planes are tested against the light's bounding
 // sphere (no look-up: a plane that leaves the whole sphere outside means T
@@ -138,7 +138,6 @@ uvec4 past_end(uint block) {
 void main() {
     uint unit = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     uint tiles_per_face = pc.more.z;
-    uint res = pc.sizes.z;
     if (unit >= pc.more.w) {
         return;
     }
@@ -152,112 +151,121 @@ void main() {
         }
     }
     uint tile = lo_t;
-    uint face = tile / tiles_per_face;
     uint in_face = tile % tiles_per_face;
     uvec2 tile_xy = uvec2(in_face % pc.more.y, in_face / pc.more.y);
-    uvec2 texel = tile_xy * TILE + uvec2(gl_LocalInvocationID.x % TILE, gl_LocalInvocationID.x / TILE);
     uint begin = tile_offsets[tile], end = tile_offsets[tile + 1u];
     uint pair_chunks = (end - begin + OCC_PAIR_CHUNK - 1u) / OCC_PAIR_CHUNK;
     uint local_unit = unit - unit_offsets[tile];
     uint sample_chunk = local_unit / pair_chunks;
     begin += (local_unit % pair_chunks) * OCC_PAIR_CHUNK;
     end = min(end, begin + OCC_PAIR_CHUNK);
+    // One lane per listed sample: the tile's lists are contiguous
+    // (tile-major texel order), so every lane has work, not only the lanes
+    // of occupied texels.
+    uint first_texel = tile * TILE * TILE;
+    uint tile_begin = offsets[first_texel], tile_end = offsets[first_texel + TILE * TILE];
+    uint s = tile_begin + sample_chunk * 64u + gl_LocalInvocationID.x;
     uint tests = 0u, blocking = 0u;
     uint words = light_blocks() * 4u;
     // LUT mode: every block in this pass; exact: block pc.soft.x only.
     uint first_block = EXACT != 0 ? pc.soft.x : 0u;
-    FOR_BLOCKS(INIT_BLOCK)
     vec3 o = pc.origin.xyz;
     float inv_r = 1.0 / pc.soft_light.x;
-    if (texel.x < res && texel.y < res && begin != end) {
-        uint t = face * res * res + texel.y * res + texel.x;
-        uint count = counts[t];
-        uint list_begin = offsets[t] + min(count, sample_chunk * OCC_SAMPLE_CHUNK);
-        uint list_end = offsets[t] + min(count, (sample_chunk + 1u) * OCC_SAMPLE_CHUNK);
-        for (uint s = list_begin; s < list_end; s++) {
-            uvec4 qb = texelFetch(list_samples_tb, int(s));
-            vec3 x = uintBitsToFloat(qb.xyz);
-            vec3 ox = x - o;
-            // Exact mode rejects a plane only beyond its rounding (1e-5 of
-            // the distance in light radii), so that it never drops a light
-            // sample that the per-sample test would block.
-            float lo_x = EXACT != 0 ? -1.0 - 1e-5 * (1.0 + length(ox) * inv_r) : -1.0;
-            FOR_BLOCKS(ACC_BLOCK)
-            for (uint k = begin; k < end; k++) {
-                uint pi = texelFetch(tile_pairs_tb, int(k)).x;
-                uvec4 ids = texelFetch(pairs_tb, int(4u * pi));
-                uvec2 rmin = uvec2(ids.z & 0xffffu, ids.z >> 16);
-                uvec2 rmax = uvec2(ids.w & 0xffffu, ids.w >> 16);
-                if (any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax)) || qb.w == ids.x) {
-                    continue; // outside the influence region, or the sample's own triangle
-                }
-                uvec4 t0 = texelFetch(triangles_tb, int(3u * ids.x));
-                vec3 a = uintBitsToFloat(t0.xyz);
-                vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 1u)).xyz);
-                vec3 c = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 2u)).xyz);
-                vec3 n = cross(b - a, c - a);
-                float sx = dot(n, x - a);
-                bool closed = (t0.w & TRIANGLE_CLOSED) != 0u;
-                // x on the plane: the segment does not cross it; x behind a
-                // closed caster: only its front faces could block, and they do not cast.
-                if (sx == 0.0 || isnan(sx) || (closed && sx < 0.0)) {
-                    continue;
-                }
-                tests++;
-                float sigma = sx > 0.0 ? 1.0 : -1.0;
-                // The supporting plane, facing x: light samples behind it.
-                vec3 ns = (sigma * inversesqrt(dot(n, n))) * n;
-                vec3 ao = a - o;
-                float d0 = dot(ns, ao) * inv_r;
-                float lo_a = EXACT != 0 ? -1.0 - 1e-5 * (1.0 + length(ao) * inv_r) : -1.0;
-                if (!(d0 > lo_a)) {
-                    continue; // the whole light is on x's side of T
-                }
-                // The planes through x and each edge, facing out of T's
-                // cone from x (one determinant orients all three alike).
-                vec3 m0 = cross(a - x, b - x), m1 = cross(b - x, c - x), m2 = cross(c - x, a - x);
-                float se = dot(m0, c - x) < 0.0 ? -1.0 : 1.0;
-                vec3 u0 = (-se * inversesqrt(dot(m0, m0))) * m0;
-                float d1 = dot(u0, ox) * inv_r;
-                if (!(d1 > lo_x)) continue;
-                vec3 u1 = (-se * inversesqrt(dot(m1, m1))) * m1;
-                float d2 = dot(u1, ox) * inv_r;
-                if (!(d2 > lo_x)) continue;
-                vec3 u2 = (-se * inversesqrt(dot(m2, m2))) * m2;
-                float d3 = dot(u2, ox) * inv_r;
-                if (!(d3 > lo_x)) continue;
-                bool hit = false;
+    if (s < tile_end && begin != end) {
+        // The sample's texel: the last of the tile's 64 whose list starts at or before s.
+        uint lo = 0u, hi = TILE * TILE;
+        while (hi - lo > 1u) {
+            uint mid = (lo + hi) / 2u;
+            if (offsets[first_texel + mid] <= s) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        uvec2 texel = tile_xy * TILE + uvec2(lo % TILE, lo / TILE);
+        FOR_BLOCKS(INIT_BLOCK)
+        uvec4 qb = texelFetch(list_samples_tb, int(s));
+        vec3 x = uintBitsToFloat(qb.xyz);
+        vec3 ox = x - o;
+        // Exact mode rejects a plane only beyond its rounding (1e-5 of
+        // the distance in light radii), so that it never drops a light
+        // sample that the per-sample test would block.
+        float lo_x = EXACT != 0 ? -1.0 - 1e-5 * (1.0 + length(ox) * inv_r) : -1.0;
+        FOR_BLOCKS(ACC_BLOCK)
+        for (uint k = begin; k < end; k++) {
+            uint pi = texelFetch(tile_pairs_tb, int(k)).x;
+            uvec4 ids = texelFetch(pairs_tb, int(4u * pi));
+            uvec2 rmin = uvec2(ids.z & 0xffffu, ids.z >> 16);
+            uvec2 rmax = uvec2(ids.w & 0xffffu, ids.w >> 16);
+            if (any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax)) || qb.w == ids.x) {
+                continue; // outside the influence region, or the sample's own triangle
+            }
+            uvec4 t0 = texelFetch(triangles_tb, int(3u * ids.x));
+            vec3 a = uintBitsToFloat(t0.xyz);
+            vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 1u)).xyz);
+            vec3 c = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 2u)).xyz);
+            vec3 n = cross(b - a, c - a);
+            float sx = dot(n, x - a);
+            bool closed = (t0.w & TRIANGLE_CLOSED) != 0u;
+            // x on the plane: the segment does not cross it; x behind a
+            // closed caster: only its front faces could block, and they do not cast.
+            if (sx == 0.0 || isnan(sx) || (closed && sx < 0.0)) {
+                continue;
+            }
+            tests++;
+            float sigma = sx > 0.0 ? 1.0 : -1.0;
+            // The supporting plane, facing x: light samples behind it.
+            vec3 ns = (sigma * inversesqrt(dot(n, n))) * n;
+            vec3 ao = a - o;
+            float d0 = dot(ns, ao) * inv_r;
+            float lo_a = EXACT != 0 ? -1.0 - 1e-5 * (1.0 + length(ao) * inv_r) : -1.0;
+            if (!(d0 > lo_a)) {
+                continue; // the whole light is on x's side of T
+            }
+            // The planes through x and each edge, facing out of T's
+            // cone from x (one determinant orients all three alike).
+            vec3 m0 = cross(a - x, b - x), m1 = cross(b - x, c - x), m2 = cross(c - x, a - x);
+            float se = dot(m0, c - x) < 0.0 ? -1.0 : 1.0;
+            vec3 u0 = (-se * inversesqrt(dot(m0, m0))) * m0;
+            float d1 = dot(u0, ox) * inv_r;
+            if (!(d1 > lo_x)) continue;
+            vec3 u1 = (-se * inversesqrt(dot(m1, m1))) * m1;
+            float d2 = dot(u1, ox) * inv_r;
+            if (!(d2 > lo_x)) continue;
+            vec3 u2 = (-se * inversesqrt(dot(m2, m2))) * m2;
+            float d3 = dot(u2, ox) * inv_r;
+            if (!(d3 > lo_x)) continue;
+            bool hit = false;
 #if !EXACT
-                    uint c0 = plane_code(ns, d0), c1 = plane_code(u0, d1);
-                    uint c2 = plane_code(u1, d2), c3 = plane_code(u2, d3);
-                    FOR_BLOCKS(LUT_BLOCK)
+            uint c0 = plane_code(ns, d0), c1 = plane_code(u0, d1);
+            uint c2 = plane_code(u1, d2), c3 = plane_code(u2, d3);
+            FOR_BLOCKS(LUT_BLOCK)
 #else
-                    // Every light sample of the block against the four planes.
-                    uint base = first_block * 128u;
-                    uint n_block = min(pc.soft.y - min(base, pc.soft.y), 128u);
-                    uvec4 bits = uvec4(0u);
-                    for (uint j = 0u; j < n_block; j++) {
-                        vec3 l = light_samples[base + j].xyz;
-                        if (sigma * dot(n, l - a) < 0.0 && se * dot(m0, l - x) > 0.0
-                            && se * dot(m1, l - x) > 0.0 && se * dot(m2, l - x) > 0.0) {
-                            uint w = j >> 5u, bit = 1u << (j & 31u);
-                            bits |= uvec4(w == 0u ? bit : 0u, w == 1u ? bit : 0u, w == 2u ? bit : 0u, w == 3u ? bit : 0u);
-                        }
-                    }
-                    acc0 |= bits;
-                    hit = bits != uvec4(0u);
-#endif
-                if (hit) {
-                    blocking++;
-                    uvec4 all_blocks = uvec4(0xffffffffu);
-                    FOR_BLOCKS(AND_BLOCK)
-                    if (all(equal(all_blocks, uvec4(0xffffffffu)))) {
-                        break; // every light sample is blocked: nothing left to find
-                    }
+            // Every light sample of the block against the four planes.
+            uint base = first_block * 128u;
+            uint n_block = min(pc.soft.y - min(base, pc.soft.y), 128u);
+            uvec4 bits = uvec4(0u);
+            for (uint j = 0u; j < n_block; j++) {
+                vec3 l = light_samples[base + j].xyz;
+                if (sigma * dot(n, l - a) < 0.0 && se * dot(m0, l - x) > 0.0
+                    && se * dot(m1, l - x) > 0.0 && se * dot(m2, l - x) > 0.0) {
+                    uint w = j >> 5u, bit = 1u << (j & 31u);
+                    bits |= uvec4(w == 0u ? bit : 0u, w == 1u ? bit : 0u, w == 2u ? bit : 0u, w == 3u ? bit : 0u);
                 }
             }
-            FOR_BLOCKS(FLUSH_BLOCK)
+            acc0 |= bits;
+            hit = bits != uvec4(0u);
+#endif
+            if (hit) {
+                blocking++;
+                uvec4 all_blocks = uvec4(0xffffffffu);
+                FOR_BLOCKS(AND_BLOCK)
+                if (all(equal(all_blocks, uvec4(0xffffffffu)))) {
+                    break; // every light sample is blocked: nothing left to find
+                }
+            }
         }
+        FOR_BLOCKS(FLUSH_BLOCK)
     }
     uint sum_tests = subgroupAdd(tests);
     uint sum_blocking = subgroupAdd(blocking);

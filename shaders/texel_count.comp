@@ -28,7 +28,7 @@ void main() {
         && project_to_face(p, f, xyz)) {
         uint res = pc.sizes.z;
         uvec2 t = texel_of(faces[f].window, xyz.x, xyz.y, res);
-        texel = f * res * res + t.y * res + t.x;
+        texel = texel_index(f, t);
         local = atomicAdd(counts[texel], 1u);
         uvec2 tt = t / TILE;
         atomicMax(tile_max_len[f * pc.more.z + tt.y * pc.more.y + tt.x], local + 1u);

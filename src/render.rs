@@ -333,7 +333,7 @@ fn hard_stats(out: &HardShadowOutput, resolution: u32, faces: usize) -> serde_js
         "light_faces": faces,
         "listed_view_samples": listed,
         "occupied_texels": occupied,
-        "occupied_texels_percent": 100.0 * occupied as f64 / out.list_lengths.len().max(1) as f64,
+        "occupied_texels_percent": 100.0 * occupied as f64 / (faces as f64 * (resolution as f64).powi(2)).max(1.0),
         "average_list_length": listed as f64 / occupied.max(1) as f64,
         "max_list_length": max_list,
         "triangles_submitted": c[counter::DEGENERATE] + c[counter::FRONT_FACING_CLOSED] + c[counter::CULLED] + c[counter::RASTERIZED],

@@ -130,7 +130,8 @@ pub struct HardShadowPass {
     tile_units: ComputePipeline,
     occlusion: ComputePipeline,
     resolve: ComputePipeline,
-    tile_units_exact: ComputePipeline,
+    /// Soft passes' work units: one lane per listed sample of a tile.
+    tile_units_soft: ComputePipeline,
     lut_build: ComputePipeline,
     /// LUT-mode occlusion, one pipeline per number of 128-sample blocks (1 to 8).
     occlusion_lut: Vec<ComputePipeline>,
@@ -149,10 +150,11 @@ struct PlaneLut {
     buffer: Buffer,
 }
 
-/// Occlusion chunks of the exact soft mode (pairs, list entries): each test
-/// loops over 128 light samples, so 8 · 32 · 129 stays below lavapipe's
-/// 65535 loop iterations per invocation.
-const EXACT_CHUNKS: [(u32, u32); 2] = [(2, 8), (3, 32)];
+/// Pairs per soft occlusion work unit (spec constant 2, OCC_PAIR_CHUNK):
+/// each lane has one sample, and in exact mode each test loops over 128
+/// light samples, so 256 · 129 stays below lavapipe's 65535 loop
+/// iterations per invocation.
+const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
 
 fn groups(n: u32) -> [u32; 3] {
     let g = n.div_ceil(WG);
@@ -225,11 +227,11 @@ impl HardShadowPass {
                 &[],
             )?,
             resolve: make("resolve", shaders::RESOLVE, &[sb; 4], &[])?,
-            tile_units_exact: make(
-                "tile_units_exact",
-                shaders::TILE_UNITS,
+            tile_units_soft: make(
+                "tile_units_soft",
+                shaders::TILE_UNITS_SAMPLE_LANES,
                 &[sb; 3],
-                &EXACT_CHUNKS,
+                &[SOFT_PAIR_CHUNK],
             )?,
             lut_build: make(
                 "lut_build",
@@ -254,7 +256,7 @@ impl HardShadowPass {
                     &format!("occlusion_soft_lut{}", b + 1),
                     spirv,
                     &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb],
-                    &[],
+                    &[SOFT_PAIR_CHUNK],
                 )
             })
             .collect::<Result<_>>()?,
@@ -262,7 +264,7 @@ impl HardShadowPass {
                 "occlusion_soft_exact",
                 shaders::OCCLUSION_SOFT_EXACT,
                 &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb],
-                &EXACT_CHUNKS,
+                &[SOFT_PAIR_CHUNK],
             )?,
             soft_resolve: make(
                 "soft_resolve",
@@ -446,7 +448,10 @@ impl HardShadowPass {
                 "light_texels must be in 1..=16384, got {resolution}"
             )));
         }
-        let texels = faces as u64 * resolution as u64 * resolution as u64;
+        // Texel lists in tile-major order (texel_index in hard_common.glsl):
+        // every tile has 64 counters, partial edge tiles too.
+        let tiles_per_row = resolution.div_ceil(TILE);
+        let texels = faces as u64 * (tiles_per_row as u64 * TILE as u64).pow(2);
         if texels + 1 > self.scan.max_len() as u64 {
             return Err(Error::InvalidInput(format!(
                 "{faces} light face(s) of {resolution}² texels need {texels} list counters; this device scans at most {} (lower light_texels)",
@@ -461,7 +466,6 @@ impl HardShadowPass {
                 "view-sample or triangle buffer smaller than its count".into(),
             ));
         }
-        let tiles_per_row = resolution.div_ceil(TILE);
         let tiles_per_face = tiles_per_row * tiles_per_row;
         let tiles = faces * tiles_per_face;
         let pair_capacity = nt.saturating_mul(faces);
@@ -698,13 +702,13 @@ impl HardShadowPass {
                     groups(pair_capacity),
                 )?;
                 rec.barrier(Barrier::ComputeToCompute);
-                let units_pipeline = match soft {
-                    Some(sl) if sl.exact => &self.tile_units_exact,
-                    _ => &self.tile_units,
+                let (units_pipeline, per_tile) = match soft {
+                    Some(_) => (&self.tile_units_soft, &offsets),
+                    None => (&self.tile_units, &tile_max_len),
                 };
                 rec.dispatch(
                     units_pipeline,
-                    &[s(&tile_counts), s(&tile_max_len), s(&tile_units)],
+                    &[s(&tile_counts), s(per_tile), s(&tile_units)],
                     pc,
                     groups(tiles),
                 )
