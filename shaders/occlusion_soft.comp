@@ -83,6 +83,7 @@ layout(set = 0, binding = 7) buffer Masks { uint masks[]; };         // per list
 layout(set = 0, binding = 8) buffer Counters { uint counters[]; };
 layout(set = 0, binding = 9) readonly buffer UnitOffsets { uint unit_offsets[]; };
 layout(set = 0, binding = 11) uniform usamplerBuffer lut_tb;         // LUT, all blocks
+#include "occlusion_units.glsl"
 
 #define LUT_ALL 0xffffffffu
 
@@ -136,53 +137,16 @@ uvec4 past_end(uint block) {
 #define AND_BLOCK(K) all_blocks &= acc##K;
 
 void main() {
-    uint unit = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-    uint tiles_per_face = pc.more.z;
-    if (unit >= pc.more.w) {
-        return;
-    }
-    uint lo_t = 0u, hi_t = tiles_per_face * pc.sizes.w;
-    while (hi_t - lo_t > 1u) {
-        uint mid = (lo_t + hi_t) / 2u;
-        if (unit_offsets[mid] <= unit) {
-            lo_t = mid;
-        } else {
-            hi_t = mid;
-        }
-    }
-    uint tile = lo_t;
-    uint in_face = tile % tiles_per_face;
-    uvec2 tile_xy = uvec2(in_face % pc.more.y, in_face / pc.more.y);
-    uint begin = tile_offsets[tile], end = tile_offsets[tile + 1u];
-    uint pair_chunks = (end - begin + OCC_PAIR_CHUNK - 1u) / OCC_PAIR_CHUNK;
-    uint local_unit = unit - unit_offsets[tile];
-    uint sample_chunk = local_unit / pair_chunks;
-    begin += (local_unit % pair_chunks) * OCC_PAIR_CHUNK;
-    end = min(end, begin + OCC_PAIR_CHUNK);
-    // One lane per listed sample: the tile's lists are contiguous
-    // (tile-major texel order), so every lane has work, not only the lanes
-    // of occupied texels.
-    uint first_texel = tile * TILE * TILE;
-    uint tile_begin = offsets[first_texel], tile_end = offsets[first_texel + TILE * TILE];
-    uint s = tile_begin + sample_chunk * 64u + gl_LocalInvocationID.x;
+    OcclusionUnit un = occlusion_unit();
+    uint begin = un.pair_begin, end = un.pair_end, s = un.slot;
+    uvec2 texel = un.texel;
     uint tests = 0u, blocking = 0u;
     uint words = light_blocks() * 4u;
     // LUT mode: every block in this pass; exact: block pc.soft.x only.
     uint first_block = EXACT != 0 ? pc.soft.x : 0u;
     vec3 o = pc.origin.xyz;
     float inv_r = 1.0 / pc.soft_light.x;
-    if (s < tile_end && begin != end) {
-        // The sample's texel: the last of the tile's 64 whose list starts at or before s.
-        uint lo = 0u, hi = TILE * TILE;
-        while (hi - lo > 1u) {
-            uint mid = (lo + hi) / 2u;
-            if (offsets[first_texel + mid] <= s) {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        uvec2 texel = tile_xy * TILE + uvec2(lo % TILE, lo / TILE);
+    if (un.has_sample) {
         FOR_BLOCKS(INIT_BLOCK)
         uvec4 qb = texelFetch(list_samples_tb, int(s));
         vec3 x = uintBitsToFloat(qb.xyz);

@@ -1,0 +1,75 @@
+// Occlusion work units (tile_units.comp with SAMPLE_LANES): one workgroup
+// per (tile, chunk of OCC_PAIR_CHUNK of its binned pairs, chunk of 64 of its
+// listed samples), one invocation per listed sample. The tile's lists are
+// contiguous (tile-major texel order, texel_index), so every lane of a
+// workgroup has a sample, not only the lanes of occupied texels.
+// Include after declaring tile_offsets, offsets and unit_offsets.
+#ifndef AFS_OCCLUSION_UNITS_GLSL
+#define AFS_OCCLUSION_UNITS_GLSL
+
+struct OcclusionUnit {
+    uint pair_begin;   // this unit's pairs: tile_pairs[pair_begin..pair_end)
+    uint pair_end;
+    uint slot;         // this invocation's list slot (valid when has_sample)
+    bool has_sample;
+    bool first_of_texel; // the slot is the first of its texel's list
+    uint face;
+    uvec2 texel;
+};
+
+OcclusionUnit occlusion_unit() {
+    OcclusionUnit u;
+    uint unit = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint tiles_per_face = pc.more.z;
+    u.has_sample = false;
+    u.first_of_texel = false;
+    u.pair_begin = 0u;
+    u.pair_end = 0u;
+    u.slot = 0u;
+    u.face = 0u;
+    u.texel = uvec2(0u);
+    if (unit >= pc.more.w) {
+        return u;
+    }
+    // The tile: the last one whose first unit is at most `unit`.
+    uint lo_t = 0u, hi_t = tiles_per_face * pc.sizes.w;
+    while (hi_t - lo_t > 1u) {
+        uint mid = (lo_t + hi_t) / 2u;
+        if (unit_offsets[mid] <= unit) {
+            lo_t = mid;
+        } else {
+            hi_t = mid;
+        }
+    }
+    uint tile = lo_t;
+    u.face = tile / tiles_per_face;
+    uint in_face = tile % tiles_per_face;
+    uvec2 tile_xy = uvec2(in_face % pc.more.y, in_face / pc.more.y);
+    uint begin = tile_offsets[tile], end = tile_offsets[tile + 1u];
+    uint pair_chunks = (end - begin + OCC_PAIR_CHUNK - 1u) / OCC_PAIR_CHUNK;
+    uint local_unit = unit - unit_offsets[tile];
+    uint sample_chunk = local_unit / pair_chunks;
+    u.pair_begin = begin + (local_unit % pair_chunks) * OCC_PAIR_CHUNK;
+    u.pair_end = min(end, u.pair_begin + OCC_PAIR_CHUNK);
+    uint first_texel = tile * TILE * TILE;
+    uint tile_end = offsets[first_texel + TILE * TILE];
+    u.slot = offsets[first_texel] + sample_chunk * 64u + gl_LocalInvocationID.x;
+    u.has_sample = u.slot < tile_end && u.pair_begin != u.pair_end;
+    if (u.has_sample) {
+        // The slot's texel: the last of the tile's 64 whose list starts at or before it.
+        uint lo = 0u, hi = TILE * TILE;
+        while (hi - lo > 1u) {
+            uint mid = (lo + hi) / 2u;
+            if (offsets[first_texel + mid] <= u.slot) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        u.texel = tile_xy * TILE + uvec2(lo % TILE, lo / TILE);
+        u.first_of_texel = offsets[first_texel + lo] == u.slot;
+    }
+    return u;
+}
+
+#endif
