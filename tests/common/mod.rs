@@ -43,3 +43,37 @@ pub fn engine_view_samples(oracle: &Oracle, desc: &SceneDescription) -> ViewSamp
     }
     view
 }
+
+/// `desc` with every position scaled by `scale` about the origin, then
+/// moved by `offset`: meshes, camera and the lights (point and sphere
+/// lights; a sphere's radius scales too). The same scene at another size
+/// or place: its shadows must not change.
+pub fn scaled_and_moved(
+    desc: &SceneDescription,
+    scale: f64,
+    offset: glam::DVec3,
+) -> SceneDescription {
+    use alias_free_shadows::light::LightShape;
+    let m =
+        glam::DMat4::from_translation(offset) * glam::DMat4::from_scale(glam::DVec3::splat(scale));
+    let mut out = desc.clone();
+    for mesh in &mut out.scene.meshes {
+        mesh.transform(&m);
+    }
+    out.camera.eye = m.transform_point3(desc.camera.eye);
+    out.camera.target = m.transform_point3(desc.camera.target);
+    for l in &mut out.lights {
+        l.shape = match &l.shape {
+            LightShape::Point { position } => LightShape::Point {
+                position: m.transform_point3(*position),
+            },
+            LightShape::Sphere { position, radius } => LightShape::Sphere {
+                position: m.transform_point3(*position),
+                radius: radius * scale,
+            },
+            other => panic!("scaled_and_moved: light {other:?} not supported"),
+        };
+    }
+    out.name = format!("{} x{scale:e} +{offset}", desc.name);
+    out
+}
