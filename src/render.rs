@@ -302,12 +302,22 @@ pub fn light_view(light: &Light, eye: DVec3) -> Option<LightView> {
     }
 }
 
-/// The scene's triangles, camera-relative, in global-id order.
+/// The scene's triangles, camera-relative, in global-id order, each with
+/// whether the passes may treat it as part of a closed mesh. A closed mesh
+/// that contains the eye is treated as open: its view samples are on the
+/// inside, where skipping the faces that face the light (paper §3.3) would
+/// drop the very faces that hide the light.
 pub fn gpu_triangles(scene: &Scene, eye: DVec3) -> Vec<([Vec3; 3], bool)> {
+    let inside = scene.closed_meshes_containing(eye);
     scene
         .triangles()
         .iter()
-        .map(|t| (t.vertices.map(|v| (v - eye).as_vec3()), t.closed))
+        .map(|t| {
+            (
+                t.vertices.map(|v| (v - eye).as_vec3()),
+                t.closed && !inside[t.mesh as usize],
+            )
+        })
         .collect()
 }
 

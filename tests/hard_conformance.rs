@@ -369,6 +369,176 @@ fn scaled_and_distant_scenes_conform() {
     engine.context().check_validation().unwrap();
 }
 
+fn quad(name: &str, c: [DVec3; 4]) -> Mesh {
+    Mesh::new(name, c.to_vec(), vec![[0, 1, 2], [0, 2, 3]])
+}
+
+fn ground(half: f64) -> Mesh {
+    let g = half;
+    quad(
+        "ground",
+        [
+            DVec3::new(-g, 0.0, -g),
+            DVec3::new(-g, 0.0, g),
+            DVec3::new(g, 0.0, g),
+            DVec3::new(g, 0.0, -g),
+        ],
+    )
+}
+
+/// A closed box, faces wound outwards.
+fn closed_box(name: &str, centre: DVec3, half: f64) -> Mesh {
+    let v: Vec<DVec3> = (0..8)
+        .map(|i| {
+            centre
+                + DVec3::new(
+                    if i & 1 == 0 { -half } else { half },
+                    if i & 2 == 0 { -half } else { half },
+                    if i & 4 == 0 { -half } else { half },
+                )
+        })
+        .collect();
+    let faces = [
+        [0, 2, 6, 4],
+        [1, 3, 7, 5],
+        [0, 1, 5, 4],
+        [2, 3, 7, 6],
+        [0, 1, 3, 2],
+        [4, 5, 7, 6],
+    ];
+    let mut tris = Vec::new();
+    for f in faces {
+        for t in [[f[0], f[1], f[2]], [f[0], f[2], f[3]]] {
+            let [a, b, c] = t.map(|i: u32| v[i as usize]);
+            let outward = (b - a).cross(c - a).dot((a + b + c) / 3.0 - centre) > 0.0;
+            tris.push(if outward { t } else { [t[0], t[2], t[1]] });
+        }
+    }
+    Mesh::new(name, v, tris)
+}
+
+fn built(
+    name: &str,
+    meshes: Vec<Mesh>,
+    eye: DVec3,
+    target: DVec3,
+    light: DVec3,
+) -> SceneDescription {
+    let mut desc = file::load("builtin:plane_sphere").unwrap();
+    desc.name = name.into();
+    desc.scene = Scene {
+        meshes,
+        ..Default::default()
+    };
+    desc.camera.eye = eye;
+    desc.camera.target = target;
+    desc.camera.up = DVec3::Y;
+    desc.lights = vec![point(light)];
+    sized(desc, 64)
+}
+
+/// Issue 5, adversarial scenes, each against the oracle with the bands:
+/// degenerate triangles (zero area, collinear, a repeated vertex, a sliver
+/// of aspect 1e6), a light inside a closed box, a light on a surface, a
+/// grazing light, a camera inside a closed box, a caster crossing the
+/// light's planes (clipped), and a scene with no caster.
+#[test]
+fn adversarial_scenes_conform() {
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let eye = DVec3::new(4.0, 5.0, 6.0);
+    let p = DVec3::new(1.5, 1.0, 0.0);
+    let degenerate = Mesh::new(
+        "degenerate",
+        vec![
+            p,
+            p + DVec3::new(0.3, 0.0, 0.0),
+            p + DVec3::new(0.6, 0.0, 0.0),
+            DVec3::new(-2.0, 1.5, -1.0),
+            DVec3::new(2.0, 1.5, -1.0),
+            DVec3::new(0.0, 1.5, -1.0 + 4e-6),
+        ],
+        // zero area (one point), collinear, repeated vertex, sliver 4 x 4e-6
+        vec![[0, 0, 0], [0, 1, 2], [0, 0, 1], [3, 5, 4]],
+    );
+    let scenes = [
+        built(
+            "degenerate triangles",
+            vec![ground(5.0), closed_box("box", DVec3::Y, 0.5), degenerate],
+            eye,
+            DVec3::ZERO,
+            DVec3::new(1.0, 6.0, 2.0),
+        ),
+        built(
+            "light inside a closed box",
+            vec![
+                ground(5.0),
+                closed_box("box", DVec3::new(0.0, 3.0, 0.0), 0.5),
+            ],
+            eye,
+            DVec3::ZERO,
+            DVec3::new(0.0, 3.0, 0.0),
+        ),
+        built(
+            "light on a box's top face",
+            vec![ground(5.0), closed_box("box", DVec3::Y, 0.5)],
+            eye,
+            DVec3::ZERO,
+            DVec3::new(0.1, 1.5, 0.2),
+        ),
+        built(
+            "grazing light",
+            vec![
+                ground(5.0),
+                closed_box("box", DVec3::new(0.0, 0.5, 0.0), 0.5),
+            ],
+            eye,
+            DVec3::ZERO,
+            DVec3::new(30.0, 1e-3, 1.0),
+        ),
+        built(
+            "camera inside a closed box",
+            vec![
+                ground(5.0),
+                closed_box("room", DVec3::new(0.0, 2.0, 0.0), 1.5),
+            ],
+            DVec3::new(0.3, 2.0, 0.2),
+            DVec3::new(-1.0, 1.0, -1.0),
+            DVec3::new(0.0, 8.0, 0.0),
+        ),
+        built(
+            "caster crossing the light's planes",
+            vec![
+                ground(5.0),
+                Mesh::new(
+                    "slab",
+                    vec![
+                        DVec3::new(-3.0, 2.9, -3.0),
+                        DVec3::new(3.0, 3.1, -3.0),
+                        DVec3::new(0.0, 3.05, 3.0),
+                    ],
+                    vec![[0, 2, 1]],
+                ),
+            ],
+            eye,
+            DVec3::ZERO,
+            DVec3::new(0.2, 3.0, 0.1),
+        ),
+        built(
+            "no caster",
+            vec![ground(5.0)],
+            eye,
+            DVec3::ZERO,
+            DVec3::new(1.0, 4.0, 1.0),
+        ),
+    ];
+    for desc in scenes {
+        let light = desc.lights[0].clone();
+        check(&mut engine, &desc.name, &desc, &light, 512);
+        check(&mut engine, &desc.name, &desc, &light, 16);
+    }
+    engine.context().check_validation().unwrap();
+}
+
 /// A thin wire (a long quad) above a ground plane and user-supplied view
 /// samples densely across its shadow, plus four far samples that stretch the
 /// fitted light window so that one light texel is a hundred times wider

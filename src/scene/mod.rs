@@ -245,6 +245,26 @@ impl Scene {
         out
     }
 
+    /// Per mesh: whether `p` lies inside it (closed meshes only; open ones
+    /// are never "inside"). Ray parity in f64 along a fixed oblique
+    /// direction, which a closed mesh's surface crosses an odd number of
+    /// times from an inside point.
+    pub fn closed_meshes_containing(&self, p: DVec3) -> Vec<bool> {
+        let dir = DVec3::new(0.577_350_3, 0.577_350_2, 0.577_350_4)
+            + DVec3::new(1.3e-3, -0.7e-3, 0.2e-3);
+        self.meshes
+            .iter()
+            .map(|m| {
+                m.closed
+                    && (0..m.indices.len())
+                        .filter(|&t| ray_crosses(p, dir, m.triangle(t)))
+                        .count()
+                        % 2
+                        == 1
+            })
+            .collect()
+    }
+
     /// Adds a square ground plane of two triangles at height `y`, normal +y.
     pub fn add_ground(&mut self, y: f64, half_size: f64) {
         let h = half_size;
@@ -260,6 +280,28 @@ impl Scene {
         m.closed = false;
         self.meshes.push(m);
     }
+}
+
+/// Whether the ray p + t·dir, t > 0, crosses triangle `v` (Möller–Trumbore).
+fn ray_crosses(p: DVec3, dir: DVec3, v: [DVec3; 3]) -> bool {
+    let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
+    let h = dir.cross(e2);
+    let det = e1.dot(h);
+    if det.abs() < 1e-300 {
+        return false;
+    }
+    let f = 1.0 / det;
+    let s = p - v[0];
+    let u = f * s.dot(h);
+    if !(0.0..=1.0).contains(&u) {
+        return false;
+    }
+    let q = s.cross(e1);
+    let w = f * dir.dot(q);
+    if w < 0.0 || u + w > 1.0 {
+        return false;
+    }
+    f * e2.dot(q) > 0.0
 }
 
 /// One triangle of a flattened scene, with the facts the shadow passes need.
