@@ -539,6 +539,122 @@ fn adversarial_scenes_conform() {
     engine.context().check_validation().unwrap();
 }
 
+/// Issue 5, load: a million view samples in one light texel (copies of two
+/// points, one in a caster's shadow and one outside it, in the same texel),
+/// plus four far samples that fit the light window: every copy gets its
+/// point's oracle answer, hard and soft (exact mode).
+#[test]
+fn one_texel_holds_a_million_samples() {
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let mut scene = Scene::default();
+    scene.meshes.push(ground(5.0));
+    // A caster whose shadow edge passes between the two points.
+    scene.meshes.push(quad(
+        "caster",
+        [
+            DVec3::new(-1.0, 1.0, -1.0),
+            DVec3::new(-1.0, 1.0, 1.0),
+            DVec3::new(0.05, 1.0, 1.0),
+            DVec3::new(0.05, 1.0, -1.0),
+        ],
+    ));
+    let light_pos = DVec3::new(0.0, 4.0, 0.0);
+    // The shadow edge on the ground: x = 0.05 * 4 / 3, inside a texel.
+    let edge = 0.05 * 4.0 / 3.0;
+    let ground_triangle = |p: DVec3| if p.x >= p.z { 1u32 } else { 0u32 };
+    let (a, b) = (
+        DVec3::new(edge - 1e-4, 0.0, 0.0),
+        DVec3::new(edge + 1e-4, 0.0, 0.0),
+    );
+    let distinct: Vec<DVec3> = vec![
+        a,
+        b,
+        // In the light's -y cube face with the copies: they fit its window.
+        DVec3::new(-2.0, 0.0, -2.0),
+        DVec3::new(2.0, 0.0, -2.0),
+        DVec3::new(2.0, 0.0, 2.0),
+        DVec3::new(-2.0, 0.0, 2.0),
+    ];
+    let sample = |p: DVec3| {
+        Some(ViewSample {
+            position: p,
+            normal: DVec3::Y,
+            triangle: ground_triangle(p),
+        })
+    };
+    let copies = 1 << 20;
+    let mut samples: Vec<Option<ViewSample>> = Vec::with_capacity(copies + 4);
+    for k in 0..copies {
+        samples.push(sample(if k % 2 == 0 { a } else { b }));
+    }
+    samples.extend(distinct[2..].iter().map(|p| sample(*p)));
+    let index = |i: usize| if i < copies { i % 2 } else { i - copies + 2 };
+    let eye = DVec3::new(0.0, 3.0, 3.0);
+    let oracle = Oracle::new(&scene.triangles(), eye);
+    let view = ViewSamples {
+        width: distinct.len() as u32,
+        height: 1,
+        eye,
+        samples: distinct.iter().map(|p| sample(*p)).collect(),
+    };
+    // Hard.
+    let light = point(light_pos);
+    let want = oracle.visibility(&view, &light.light_samples(), None);
+    assert!(
+        want[0] < 0.5 && want[1] > 0.5,
+        "the two points straddle the shadow edge: {want:?}"
+    );
+    // 16² texels of a quarter unit: the edge (x = 0.0667) is inside one.
+    let r = engine
+        .hard_shadows(&scene, eye, &samples, &light, 16)
+        .unwrap();
+    let max_list = r.stats["max_list_length"].as_u64().unwrap();
+    let wrong = (0..samples.len())
+        .filter(|&i| (r.lit[i] == Some(true)) != (want[index(i)] > 0.5))
+        .count();
+    eprintln!(
+        "hard: {} samples, longest list {max_list}, {wrong} wrong",
+        samples.len()
+    );
+    assert!(
+        max_list >= copies as u64,
+        "the copies share one texel: {max_list}"
+    );
+    assert_eq!(wrong, 0);
+    // Soft, exact mode, 128 samples.
+    let light = Light {
+        shape: LightShape::Sphere {
+            position: light_pos,
+            radius: 0.3,
+        },
+        samples: 128,
+        ..point(light_pos)
+    };
+    let want = oracle.visibility(&view, &light.light_samples(), None);
+    let settings = alias_free_shadows::scene::file::ShadowSettings {
+        mode: alias_free_shadows::scene::file::SoftMode::Exact,
+        soft_light_texels: 16,
+        ..Default::default()
+    };
+    let r = engine
+        .soft_shadows(&scene, eye, &samples, &light, &settings)
+        .unwrap();
+    let max_list = r.stats["max_list_length"].as_u64().unwrap();
+    let wrong = (0..samples.len())
+        .filter(|&i| r.visibility[i].unwrap_or(0.0) != want[index(i)])
+        .count();
+    eprintln!(
+        "soft exact: visibility {:.4} / {:.4} (oracle {:.4} / {:.4}), longest list {max_list}, {wrong} wrong",
+        r.visibility[0].unwrap_or(0.0),
+        r.visibility[1].unwrap_or(0.0),
+        want[0],
+        want[1]
+    );
+    assert!(max_list >= copies as u64);
+    assert_eq!(wrong, 0);
+    engine.context().check_validation().unwrap();
+}
+
 /// A thin wire (a long quad) above a ground plane and user-supplied view
 /// samples densely across its shadow, plus four far samples that stretch the
 /// fitted light window so that one light texel is a hundred times wider

@@ -250,8 +250,8 @@ impl Scene {
     /// direction, which a closed mesh's surface crosses an odd number of
     /// times from an inside point.
     pub fn closed_meshes_containing(&self, p: DVec3) -> Vec<bool> {
-        let dir = DVec3::new(0.577_350_3, 0.577_350_2, 0.577_350_4)
-            + DVec3::new(1.3e-3, -0.7e-3, 0.2e-3);
+        let dir =
+            DVec3::new(0.577_350_3, 0.577_350_2, 0.577_350_4) + DVec3::new(1.3e-3, -0.7e-3, 0.2e-3);
         self.meshes
             .iter()
             .map(|m| {
