@@ -469,6 +469,13 @@ impl Engine {
         })
     }
 
+    /// Limits the view samples per shadow run: larger sets are split into
+    /// batches, as they are anyway when their buffers would pass the
+    /// device's binding limits. For tests of that path; `None` lifts it.
+    pub fn set_view_sample_batch_limit(&mut self, limit: Option<usize>) {
+        self.hard.set_batch_limit(limit);
+    }
+
     /// The plane look-up texture the GPU builds for `light` (a light with
     /// extent) with `settings`' resolution: per texel, then per 128-sample
     /// block, the bits of the samples behind the texel's plane. For tests

@@ -46,7 +46,8 @@ pub struct HardShadowOutput {
     pub lit: Vec<Option<bool>>,
     /// The pass counters (indices in [`counter`]).
     pub counters: [u32; counter::COUNT],
-    /// Per light texel (face·R² + row·R + column): list length.
+    /// Per light texel, tile-major (`texel_index` in hard_common.glsl):
+    /// list length. Split runs keep the batch with the longest list.
     pub list_lengths: Vec<u32>,
     /// GPU milliseconds per pass.
     pub timings: Vec<PassTiming>,
@@ -141,6 +142,9 @@ pub struct HardShadowPass {
     /// The last plane look-up texture built, kept across frames: it depends
     /// only on the light's normalized samples and the resolution.
     plane_lut: Option<PlaneLut>,
+    /// At most this many view samples per run; more are split into batches
+    /// (None: as many as the device's binding limits allow).
+    batch_limit: Option<usize>,
 }
 
 /// A plane look-up texture on the device and what it was built from.
@@ -274,6 +278,7 @@ impl HardShadowPass {
             )?,
             scan: ScanPass::new(ctx)?,
             plane_lut: None,
+            batch_limit: None,
         })
     }
 
@@ -356,6 +361,67 @@ impl HardShadowPass {
             .chunks_exact(4)
             .map(|w| [w[0], w[1], w[2], w[3]])
             .collect())
+    }
+
+    /// Limits the view samples per run (tests: forces the batched path that
+    /// large runs take); `None` lifts the limit.
+    pub fn set_batch_limit(&mut self, limit: Option<usize>) {
+        self.batch_limit = limit;
+    }
+
+    /// [`HardShadowPass::run_on`] over `n` view samples in batches of at
+    /// most `batch`, each copied into its own buffer; the outputs are
+    /// concatenated (counters summed, list lengths of the longest batch).
+    #[allow(clippy::too_many_arguments)]
+    fn run_batched(
+        &mut self,
+        ctx: &GpuContext,
+        samples_buf: &Buffer,
+        n: usize,
+        batch: usize,
+        triangles_buf: &Buffer,
+        nt: usize,
+        light: &LightView,
+        resolution: u32,
+        soft: Option<&SoftLight>,
+    ) -> Result<HardShadowOutput> {
+        let mut out: Option<HardShadowOutput> = None;
+        for start in (0..n).step_by(batch) {
+            let len = batch.min(n - start);
+            let part =
+                ctx.create_buffer(BufferDesc::storage("view_sample_batch", 32 * len as u64))?;
+            let mut rec = ctx.begin()?;
+            rec.copy_buffer(
+                samples_buf.slice(32 * start as u64, 32 * len as u64)?,
+                &part,
+                0,
+            )?;
+            rec.barrier(Barrier::TransferToCompute);
+            ctx.submit_and_wait(rec)?;
+            let o = self.run_on(ctx, &part, len, triangles_buf, nt, light, resolution, soft)?;
+            out = Some(match out {
+                None => o,
+                Some(mut acc) => {
+                    acc.lit.extend(o.lit);
+                    for (a, b) in acc.counters.iter_mut().zip(o.counters) {
+                        *a = a.saturating_add(b);
+                    }
+                    let longest = |l: &[u32]| l.iter().copied().max().unwrap_or(0);
+                    if longest(&o.list_lengths) > longest(&acc.list_lengths) {
+                        acc.list_lengths = o.list_lengths;
+                    }
+                    acc.timings.extend(o.timings);
+                    acc.buffer_bytes = acc.buffer_bytes.max(o.buffer_bytes);
+                    if let (Some(a), Some(b)) = (acc.soft.as_mut(), o.soft) {
+                        a.visibility.extend(b.visibility);
+                        a.visible.extend(b.visible);
+                        a.lut_built |= b.lut_built;
+                    }
+                    acc
+                }
+            });
+        }
+        out.ok_or_else(|| Error::InvalidInput("no view samples".into()))
     }
 
     /// Computes hard-shadow visibility of `view_samples` (camera-relative)
@@ -466,6 +532,29 @@ impl HardShadowPass {
                 "view-sample or triangle buffer smaller than its count".into(),
             ));
         }
+        // View samples whose buffers (the samples, 32 B; the masks, 16 B per
+        // block) would pass the device's binding limit run in batches: each
+        // batch is a complete run (lists, regions, occlusion) over all
+        // triangles, so the results are the same as in one run.
+        let max_range = ctx.info().limits.max_storage_buffer_range as u64;
+        let words = soft.map_or(0, |sl| sl.samples.len().div_ceil(128) * 4) as u64;
+        let per_sample = 32.max(4 * words);
+        let batch = ((max_range / per_sample) as usize)
+            .min(self.batch_limit.unwrap_or(usize::MAX))
+            .max(1);
+        if n as usize > batch {
+            return self.run_batched(
+                ctx,
+                samples_buf,
+                n as usize,
+                batch,
+                triangles_buf,
+                nt as usize,
+                light,
+                resolution,
+                soft,
+            );
+        }
         let tiles_per_face = tiles_per_row * tiles_per_row;
         let tiles = faces * tiles_per_face;
         let pair_capacity = nt.saturating_mul(faces);
@@ -537,14 +626,6 @@ impl HardShadowPass {
         // Soft shadows: blocked bits per list slot, visible bits per view
         // sample (4 words per 128-sample block), the light samples, the LUT.
         let words = soft.map_or(0, |sl| sl.samples.len().div_ceil(128) * 4) as u64;
-        let max_range = ctx.info().limits.max_storage_buffer_range as u64;
-        if 4 * words * n as u64 > max_range {
-            return Err(Error::InvalidInput(format!(
-                "{n} view samples x {} light-sample words need {} bytes of masks; this device binds at most {max_range} (fewer view samples or light samples)",
-                words,
-                4 * words * n as u64
-            )));
-        }
         let masks = buffer("blocked_masks", 4 * words * n as u64)?;
         let visible = buffer("visible_masks", 4 * words * n as u64)?;
         let light_ubo = {
