@@ -539,6 +539,101 @@ fn adversarial_scenes_conform() {
     engine.context().check_validation().unwrap();
 }
 
+/// Issue 5: user view samples exactly on a caster's plane (beside it, on
+/// its edges and corners, inside it) and on the ground under its edges,
+/// against the oracle with the bands.
+#[test]
+fn samples_on_a_casters_plane_and_edges_conform() {
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let mut scene = Scene::default();
+    scene.meshes.push(ground(5.0));
+    let c = [
+        DVec3::new(-1.0, 1.0, -1.0),
+        DVec3::new(-1.0, 1.0, 1.0),
+        DVec3::new(1.0, 1.0, 1.0),
+        DVec3::new(1.0, 1.0, -1.0),
+    ];
+    scene.meshes.push(quad("caster", c));
+    let light = point(DVec3::new(0.3, 4.0, 0.2));
+    let mut samples = Vec::new();
+    let n = 41;
+    for i in 0..n {
+        for k in 0..n {
+            let (x, z) = (
+                -2.0 + 4.0 * i as f64 / (n - 1) as f64,
+                -2.0 + 4.0 * k as f64 / (n - 1) as f64,
+            );
+            // On the caster's plane (y = 1), normal up; off-caster points
+            // carry no triangle (user samples), on-caster ones their own.
+            let on = x.abs() <= 1.0 && z.abs() <= 1.0;
+            samples.push(Some(ViewSample {
+                position: DVec3::new(x, 1.0, z),
+                normal: DVec3::Y,
+                triangle: if on { 2 } else { u32::MAX },
+            }));
+        }
+    }
+    // The ground under the caster's edges, where its shadow edges fall.
+    for i in 0..n {
+        let t = -1.0 + 2.0 * i as f64 / (n - 1) as f64;
+        for corner in [
+            DVec3::new(t, 1.0, -1.0),
+            DVec3::new(t, 1.0, 1.0),
+            DVec3::new(-1.0, 1.0, t),
+            DVec3::new(1.0, 1.0, t),
+        ] {
+            let d = corner - light.center().unwrap();
+            let g = light.center().unwrap() + d * (light.center().unwrap().y / -d.y);
+            samples.push(Some(ViewSample {
+                position: DVec3::new(g.x, 0.0, g.z),
+                normal: DVec3::Y,
+                triangle: u32::MAX,
+            }));
+        }
+    }
+    let eye = DVec3::new(0.0, 6.0, 6.0);
+    let oracle = Oracle::new(&scene.triangles(), eye);
+    let view = ViewSamples {
+        width: samples.len() as u32,
+        height: 1,
+        eye,
+        samples: samples.clone(),
+    };
+    let want = oracle.visibility(&view, &light.light_samples(), None);
+    for texels in [16, 512] {
+        let r = engine
+            .hard_shadows(&scene, eye, &samples, &light, texels)
+            .unwrap();
+        let (mut disagree, mut in_band_count) = (0, 0);
+        for (i, s) in samples.iter().enumerate() {
+            if (r.lit[i] == Some(true)) != (want[i] > 0.5) {
+                disagree += 1;
+                if in_any_band(
+                    &oracle,
+                    &built(
+                        "plane",
+                        scene.meshes.clone(),
+                        eye,
+                        DVec3::ZERO,
+                        light.center().unwrap(),
+                    ),
+                    s.as_ref().unwrap(),
+                    &light,
+                ) {
+                    in_band_count += 1;
+                }
+            }
+        }
+        let shadowed = want.iter().filter(|v| **v < 0.5).count();
+        eprintln!(
+            "samples on a caster's plane and edges, {texels}² texels: {} samples ({shadowed} shadowed by the oracle), {disagree} disagree, {in_band_count} in band",
+            samples.len()
+        );
+        assert_eq!(disagree, in_band_count);
+    }
+    engine.context().check_validation().unwrap();
+}
+
 /// Issue 5, load: a million view samples in one light texel (copies of two
 /// points, one in a caster's shadow and one outside it, in the same texel),
 /// plus four far samples that fit the light window: every copy gets its
