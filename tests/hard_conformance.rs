@@ -625,6 +625,10 @@ fn samples_on_a_casters_plane_and_edges_conform() {
             }
         }
         let shadowed = want.iter().filter(|v| **v < 0.5).count();
+        let on_plane_disagree = (0..n * n)
+            .filter(|&i| (r.lit[i] == Some(true)) != (want[i] > 0.5))
+            .count();
+        eprintln!("  of them on the caster's plane: {on_plane_disagree}");
         eprintln!(
             "samples on a caster's plane and edges, {texels}² texels: {} samples ({shadowed} shadowed by the oracle), {disagree} disagree, {in_band_count} in band",
             samples.len()
