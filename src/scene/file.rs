@@ -65,9 +65,10 @@ impl ShadowSettings {
                 )));
             }
         }
-        if !(8..=1024).contains(&self.lut_resolution) {
+        // The GPU look-up texture takes at most 512 (its build checks too).
+        if !(8..=512).contains(&self.lut_resolution) {
             return Err(Error::InvalidInput(format!(
-                "shadows.lut_resolution must be in 8..=1024, got {}",
+                "shadows.lut_resolution must be in 8..=512, got {}",
                 self.lut_resolution
             )));
         }
@@ -87,11 +88,16 @@ pub struct SceneDescription {
 }
 
 impl SceneDescription {
-    /// Validates the camera, every light and the settings.
+    /// Validates the camera, the geometry (finite, in range of the camera,
+    /// indices in range: [`Scene::validate`]), every light and the settings.
     pub fn validate(&self) -> Result<()> {
         self.camera.validate()?;
+        self.scene
+            .validate(self.camera.eye)
+            .map_err(|e| Error::InvalidInput(format!("{}: {}", self.name, strip_prefix(&e))))?;
         for (i, l) in self.lights.iter().enumerate() {
             l.validate()
+                .and_then(|()| l.validate_relative_to(self.camera.eye))
                 .map_err(|e| Error::InvalidInput(format!("light {i}: {}", strip_prefix(&e))))?;
         }
         self.shadows.validate()
@@ -357,6 +363,16 @@ pub fn parse_scene_file(text: &str, path: &Path) -> Result<SceneDescription> {
     }
     root.shadows.validate().map_err(|e| err(strip_prefix(&e)))?;
     desc.shadows = root.shadows;
+    // What only the whole description can tell: geometry and lights in
+    // range of this camera.
+    let eye = desc.camera.eye;
+    desc.scene
+        .validate(eye)
+        .map_err(|e| err(strip_prefix(&e)))?;
+    for (i, l) in desc.lights.iter().enumerate() {
+        l.validate_relative_to(eye)
+            .map_err(|e| err(format!("light {i}: {}", strip_prefix(&e))))?;
+    }
     Ok(desc)
 }
 
@@ -421,6 +437,12 @@ fn load_geometry(spec: &str, base: &Path) -> Result<SceneDescription> {
     }
     let (camera, light) = default_view(&scene);
     let camera = scene.cameras.first().copied().unwrap_or(camera);
+    // Vertices finite in f64 (the loader checks that) can still be out of
+    // the f32 range of the GPU passes, relative to the camera.
+    scene.validate(camera.eye).map_err(|e| Error::Gltf {
+        path: path.clone(),
+        message: strip_prefix(&e),
+    })?;
     Ok(SceneDescription {
         name: path.display().to_string(),
         scene,
