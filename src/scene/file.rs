@@ -325,13 +325,26 @@ impl FileLight {
 /// Parses a TOML scene file's text. `path` is used for messages and to
 /// resolve the relative `scene` path.
 pub fn parse_scene_file(text: &str, path: &Path) -> Result<SceneDescription> {
+    parse_scene_file_with(text, path, &load_geometry)
+}
+
+/// [`parse_scene_file`] with the geometry loader supplied:
+/// `geometry(scene, base)` resolves the file's `scene` value (`base` is the
+/// file's folder) into the scene, camera and lights that the file's own
+/// tables then override. For tests and fuzzing, which parse scene files
+/// without reading models or generating large built-in scenes.
+pub fn parse_scene_file_with(
+    text: &str,
+    path: &Path,
+    geometry: &dyn Fn(&str, &Path) -> Result<SceneDescription>,
+) -> Result<SceneDescription> {
     let err = |message: String| Error::SceneFile {
         path: path.to_path_buf(),
         message,
     };
     let root: FileRoot = toml::from_str(text).map_err(|e| err(toml_message(&e)))?;
     let base = path.parent().unwrap_or(Path::new("."));
-    let mut desc = load_geometry(&root.scene, base)?;
+    let mut desc = geometry(&root.scene, base)?;
     desc.name = path.display().to_string();
     if let Some(g) = &root.ground {
         if !(g.y.is_finite() && g.half_size.is_finite() && g.half_size > 0.0) {
