@@ -163,6 +163,15 @@ impl Light {
             }
             Ok(())
         };
+        // An explicit light's count is its positions': name those first.
+        if let LightShape::Explicit { positions } = &self.shape {
+            if positions.is_empty() || positions.len() > MAX_LIGHT_SAMPLES as usize {
+                return bad(format!(
+                    "an explicit light needs 1 to {MAX_LIGHT_SAMPLES} positions, got {}",
+                    positions.len()
+                ));
+            }
+        }
         if self.samples == 0 {
             return bad("`samples` must be at least 1".into());
         }
@@ -216,12 +225,6 @@ impl Light {
                 unit("tangent", *tangent)?;
             }
             LightShape::Explicit { positions } => {
-                if positions.is_empty() || positions.len() > MAX_LIGHT_SAMPLES as usize {
-                    return bad(format!(
-                        "an explicit light needs 1 to {MAX_LIGHT_SAMPLES} positions, got {}",
-                        positions.len()
-                    ));
-                }
                 for p in positions {
                     finite("positions", *p)?;
                 }
@@ -242,6 +245,67 @@ impl Light {
             ));
         }
         Ok(())
+    }
+
+    /// Checks that the light is usable from a camera at `eye` by the `f32`
+    /// GPU passes: its position (every position of an explicit light) and
+    /// its extent within [`MAX_RELATIVE_COORDINATE`] of `eye` along each
+    /// axis, so that every light sample is too. Call after
+    /// [`Light::validate`]; the error names the field.
+    ///
+    /// [`MAX_RELATIVE_COORDINATE`]: crate::scene::MAX_RELATIVE_COORDINATE
+    pub fn validate_relative_to(&self, eye: DVec3) -> crate::Result<()> {
+        use crate::scene::{within_range, MAX_RELATIVE_COORDINATE};
+        let bad = |m: String| Err(crate::Error::InvalidInput(format!("light: {m}")));
+        let near = |name: &str, p: DVec3| -> crate::Result<()> {
+            if within_range(p - eye) {
+                Ok(())
+            } else {
+                bad(format!(
+                    "`{name}` {p:?} is more than {MAX_RELATIVE_COORDINATE:e} from the camera eye \
+                     {eye:?} along an axis (the GPU passes work in f32 relative to the eye)"
+                ))
+            }
+        };
+        let small = |name: &str, x: f64| -> crate::Result<()> {
+            if x.abs() <= MAX_RELATIVE_COORDINATE {
+                Ok(())
+            } else {
+                bad(format!(
+                    "`{name}` = {x:e} is larger than {MAX_RELATIVE_COORDINATE:e}"
+                ))
+            }
+        };
+        match &self.shape {
+            LightShape::Directional { .. } => Ok(()),
+            LightShape::Point { position } => near("position", *position),
+            LightShape::Sphere { position, radius }
+            | LightShape::Disk {
+                position, radius, ..
+            } => {
+                near("position", *position)?;
+                small("radius", *radius)
+            }
+            LightShape::Rect { position, size, .. } => {
+                near("position", *position)?;
+                small("size[0]", size.x)?;
+                small("size[1]", size.y)
+            }
+            LightShape::Ellipsoid {
+                position,
+                semi_axes,
+                ..
+            } => {
+                near("position", *position)?;
+                small("semi_axes", semi_axes.max_element())
+            }
+            LightShape::Explicit { positions } => {
+                for p in positions {
+                    near("positions", *p)?;
+                }
+                Ok(())
+            }
+        }
     }
 
     /// The light's samples: deterministic for the light's seed, distribution

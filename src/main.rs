@@ -148,18 +148,35 @@ impl RenderArgs {
     }
 }
 
+/// Writes the image and the dump. The image goes under a temporary name
+/// next to its own (`.partial.NAME`) and is renamed only once the dump is
+/// written too, so that a failed run never leaves an image that looks
+/// complete (the dump does the same with its files).
 fn write_outputs(args: &RenderArgs, frame: &Frame) -> Result<()> {
-    if let Some(parent) = args.output.parent().filter(|p| !p.as_os_str().is_empty()) {
+    let out = &args.output;
+    let name = out
+        .file_name()
+        .ok_or_else(|| Error::InvalidInput(format!("-o {}: not a file name", out.display())))?;
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
     }
-    frame
-        .image
-        .save_with_format(&args.output, image::ImageFormat::Png)
-        .map_err(|e| Error::Image(format!("{}: {e}", args.output.display())))?;
-    if let Some(dir) = &args.dump {
-        frame.dump.write(dir, &frame.image)?;
+    let mut tmp_name = std::ffi::OsString::from(".partial.");
+    tmp_name.push(name);
+    let tmp = out.with_file_name(tmp_name);
+    let written = (|| {
+        frame
+            .image
+            .save_with_format(&tmp, image::ImageFormat::Png)
+            .map_err(|e| Error::Image(format!("{}: {e}", out.display())))?;
+        if let Some(dir) = &args.dump {
+            frame.dump.write(dir, &frame.image)?;
+        }
+        std::fs::rename(&tmp, out).map_err(|e| Error::io(out, e))
+    })();
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
     }
-    Ok(())
+    written
 }
 
 fn report(desc: &SceneDescription, frame: &Frame, args: &RenderArgs) {

@@ -133,10 +133,23 @@ fn oracle_light(
     (vis, evaluated)
 }
 
+/// The most pixels [`render_reference`] renders (4096²).
+pub const MAX_REFERENCE_PIXELS: u64 = 4096 * 4096;
+
 /// Renders a frame with the CPU oracle: primary rays for the view samples,
 /// shadow rays for visibility. The reference every GPU frame is compared to.
 pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Result<Frame> {
     desc.validate()?;
+    let pixels = desc.camera.width as u64 * desc.camera.height as u64;
+    if pixels > MAX_REFERENCE_PIXELS {
+        // About 100 bytes per pixel plus 17 per light: without this an
+        // absurd size aborts on a failed allocation instead of an error.
+        return Err(crate::Error::InvalidInput(format!(
+            "camera: image size {}x{} is more than the CPU reference renders \
+             ({MAX_REFERENCE_PIXELS} pixels, 4096x4096)",
+            desc.camera.width, desc.camera.height
+        )));
+    }
     let t0 = Instant::now();
     let triangles = desc.scene.triangles();
     let oracle = Oracle::new(&triangles, desc.camera.eye);
@@ -239,6 +252,63 @@ pub struct SoftShadowResult {
     pub mask_words: usize,
     /// Statistics (counters and milliseconds per pass).
     pub stats: serde_json::Value,
+}
+
+/// The checks [`Engine::hard_shadows`] and [`Engine::soft_shadows`] make on
+/// their inputs before any GPU work: `eye` finite; `light` valid
+/// ([`Light::validate`]) and in range of the eye
+/// ([`Light::validate_relative_to`]); `scene` valid ([`Scene::validate`]);
+/// every view sample's position finite and within
+/// [`MAX_RELATIVE_COORDINATE`](crate::scene::MAX_RELATIVE_COORDINATE) of
+/// the eye along each axis, its normal finite and non-zero in `f32`, and its
+/// triangle [`NO_TRIANGLE`](crate::oracle::NO_TRIANGLE) or a triangle of
+/// the scene. The error names the view sample or the field.
+pub fn validate_shadow_inputs(
+    scene: &Scene,
+    eye: DVec3,
+    samples: &[Option<ViewSample>],
+    light: &Light,
+) -> Result<()> {
+    use crate::Error::InvalidInput;
+    if !eye.is_finite() {
+        return Err(InvalidInput(format!("`eye` is not finite: {eye:?}")));
+    }
+    light.validate()?;
+    light.validate_relative_to(eye)?;
+    scene.validate(eye)?;
+    let triangles = scene.triangle_count();
+    for (i, s) in samples.iter().enumerate() {
+        let Some(s) = s else { continue };
+        if !s.position.is_finite() || !s.normal.is_finite() {
+            return Err(InvalidInput(format!(
+                "view sample {i} is not finite: {s:?}"
+            )));
+        }
+        if !crate::scene::within_range(s.position - eye) {
+            return Err(InvalidInput(format!(
+                "view sample {i}: the position {:?} is more than {:e} from the eye {eye:?} along an axis \
+                 (the GPU passes work in f32 relative to the eye)",
+                s.position,
+                crate::scene::MAX_RELATIVE_COORDINATE
+            )));
+        }
+        // What the GPU gets: zero when the normal is zero, or too small or
+        // too large for f32.
+        if s.normal.as_vec3().normalize_or_zero() == Vec3::ZERO {
+            return Err(InvalidInput(format!(
+                "view sample {i}: the normal {:?} is zero or not representable in f32",
+                s.normal
+            )));
+        }
+        if s.triangle != crate::oracle::NO_TRIANGLE && s.triangle as usize >= triangles {
+            return Err(InvalidInput(format!(
+                "view sample {i}: triangle {} does not exist (the scene has {triangles}; \
+                 NO_TRIANGLE for a sample on none)",
+                s.triangle
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Corners of the polygon bounding the light's silhouette (influence regions).
@@ -389,19 +459,10 @@ impl Engine {
         light: &Light,
         light_texels: u32,
     ) -> Result<HardShadowResult> {
-        light.validate()?;
+        validate_shadow_inputs(scene, eye, samples, light)?;
         let lv = light_view(light, eye).ok_or_else(|| {
             crate::Error::InvalidInput("hard shadows need a point or directional light".into())
         })?;
-        for (i, s) in samples.iter().enumerate() {
-            if let Some(s) = s {
-                if !s.position.is_finite() || !s.normal.is_finite() {
-                    return Err(crate::Error::InvalidInput(format!(
-                        "view sample {i} is not finite: {s:?}"
-                    )));
-                }
-            }
-        }
         let with_ids: Vec<_> = samples
             .iter()
             .map(|s| {
@@ -429,27 +490,23 @@ impl Engine {
         light: &Light,
         settings: &ShadowSettings,
     ) -> Result<SoftShadowResult> {
-        light.validate()?;
+        validate_shadow_inputs(scene, eye, samples, light)?;
+        settings.validate()?;
         let (sl, lv) = soft_light(light, eye, settings).ok_or_else(|| {
             crate::Error::InvalidInput("soft shadows need a light with extent".into())
         })?;
-        let mut with_ids = Vec::with_capacity(samples.len());
-        for (i, s) in samples.iter().enumerate() {
-            if let Some(s) = s {
-                if !s.position.is_finite() || !s.normal.is_finite() {
-                    return Err(crate::Error::InvalidInput(format!(
-                        "view sample {i} is not finite: {s:?}"
-                    )));
-                }
-            }
-            with_ids.push(s.map(|s| {
-                (
-                    (s.position - eye).as_vec3(),
-                    s.normal.as_vec3().normalize_or_zero(),
-                    s.triangle,
-                )
-            }));
-        }
+        let with_ids: Vec<_> = samples
+            .iter()
+            .map(|s| {
+                s.map(|s| {
+                    (
+                        (s.position - eye).as_vec3(),
+                        s.normal.as_vec3().normalize_or_zero(),
+                        s.triangle,
+                    )
+                })
+            })
+            .collect();
         let (vs, ts) = gpu_inputs(&with_ids, &gpu_triangles(scene, eye));
         let out = self.hard.run(
             &self.ctx,
@@ -501,6 +558,37 @@ impl Engine {
         light: &LightView,
         light_texels: u32,
     ) -> Result<HardShadowResult> {
+        use crate::gpu::shared::VIEW_SAMPLE_VALID;
+        let finite = |v: &[f32; 3]| v.iter().all(|c| c.is_finite());
+        for (i, s) in view_samples.iter().enumerate() {
+            if s.flags & VIEW_SAMPLE_VALID != 0 && !(finite(&s.position) && finite(&s.normal)) {
+                return Err(crate::Error::InvalidInput(format!(
+                    "view sample {i} is not finite: {s:?}"
+                )));
+            }
+        }
+        for (i, t) in triangles.iter().enumerate() {
+            if !(finite(&t.v0) && finite(&t.v1) && finite(&t.v2)) {
+                return Err(crate::Error::InvalidInput(format!(
+                    "triangle {i} is not finite: {t:?}"
+                )));
+            }
+        }
+        match light {
+            LightView::Point { position } if !position.is_finite() => {
+                return Err(crate::Error::InvalidInput(format!(
+                    "light: `position` is not finite: {position:?}"
+                )))
+            }
+            LightView::Directional { direction }
+                if !direction.is_finite() || direction.length_squared() == 0.0 =>
+            {
+                return Err(crate::Error::InvalidInput(format!(
+                    "light: `direction` must be finite and non-zero: {direction:?}"
+                )))
+            }
+            _ => {}
+        }
         let out = self.hard.run(
             &self.ctx,
             view_samples,

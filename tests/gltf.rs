@@ -1102,6 +1102,50 @@ fn missing_position_and_dangling_references_are_errors() {
 }
 
 #[test]
+fn positions_of_a_wrong_component_type_are_errors() {
+    // Three UNSIGNED_SHORT VEC3 vertices, padded to 36 bytes: long enough
+    // for three UNSIGNED_INT ones too.
+    let q: Vec<u8> = [[0u16, 0, 0], [1, 0, 0], [0, 1, 0]]
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .chain([0; 18])
+        .collect();
+    let doc = |component_type: u32, extension: bool| {
+        let mut d = Doc::new();
+        d.accessor(
+            &q,
+            json!({"componentType": component_type, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}),
+        );
+        d.mesh("q", json!({"attributes": {"POSITION": 0}}));
+        d.nodes(json!([{"mesh": 0}]), &[0]);
+        if extension {
+            d.root["extensionsUsed"] = json!(["KHR_mesh_quantization"]);
+            d.root["extensionsRequired"] = json!(["KHR_mesh_quantization"]);
+        }
+        d.gltf()
+    };
+    // Integers without KHR_mesh_quantization, and UNSIGNED_INT even with it.
+    for (ct, ext, name) in [
+        (5123, false, "UNSIGNED_SHORT"),
+        (5121, false, "UNSIGNED_BYTE"),
+        (5125, true, "UNSIGNED_INT"),
+    ] {
+        let e = load_err(&doc(ct, ext), "ints.gltf");
+        assert!(
+            e.starts_with("ints.gltf: ")
+                && e.contains("q/primitive#0")
+                && e.contains("POSITION")
+                && e.contains(name),
+            "{ct}: {e}"
+        );
+    }
+    // Declared, they load.
+    let s = load_ok(&doc(5123, true));
+    assert_eq!(s.meshes[0].positions[1], DVec3::new(1., 0., 0.));
+}
+
+#[test]
 fn node_cycles_are_errors() {
     let mut d = triangle_doc();
     d.nodes(

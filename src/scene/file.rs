@@ -64,9 +64,10 @@ impl ShadowSettings {
                 )));
             }
         }
-        if !(8..=1024).contains(&self.lut_resolution) {
+        // The GPU look-up texture takes at most 512 (its build checks too).
+        if !(8..=512).contains(&self.lut_resolution) {
             return Err(Error::InvalidInput(format!(
-                "shadows.lut_resolution must be in 8..=1024, got {}",
+                "shadows.lut_resolution must be in 8..=512, got {}",
                 self.lut_resolution
             )));
         }
@@ -86,11 +87,16 @@ pub struct SceneDescription {
 }
 
 impl SceneDescription {
-    /// Validates the camera, every light and the settings.
+    /// Validates the camera, the geometry (finite, in range of the camera,
+    /// indices in range: [`Scene::validate`]), every light and the settings.
     pub fn validate(&self) -> Result<()> {
         self.camera.validate()?;
+        self.scene
+            .validate(self.camera.eye)
+            .map_err(|e| Error::InvalidInput(format!("{}: {}", self.name, strip_prefix(&e))))?;
         for (i, l) in self.lights.iter().enumerate() {
             l.validate()
+                .and_then(|()| l.validate_relative_to(self.camera.eye))
                 .map_err(|e| Error::InvalidInput(format!("light {i}: {}", strip_prefix(&e))))?;
         }
         self.shadows.validate()
@@ -318,13 +324,26 @@ impl FileLight {
 /// Parses a TOML scene file's text. `path` is used for messages and to
 /// resolve the relative `scene` path.
 pub fn parse_scene_file(text: &str, path: &Path) -> Result<SceneDescription> {
+    parse_scene_file_with(text, path, &load_geometry)
+}
+
+/// [`parse_scene_file`] with the geometry loader supplied:
+/// `geometry(scene, base)` resolves the file's `scene` value (`base` is the
+/// file's folder) into the scene, camera and lights that the file's own
+/// tables then override. For tests and fuzzing, which parse scene files
+/// without reading models or generating large built-in scenes.
+pub fn parse_scene_file_with(
+    text: &str,
+    path: &Path,
+    geometry: &dyn Fn(&str, &Path) -> Result<SceneDescription>,
+) -> Result<SceneDescription> {
     let err = |message: String| Error::SceneFile {
         path: path.to_path_buf(),
         message,
     };
     let root: FileRoot = toml::from_str(text).map_err(|e| err(toml_message(&e)))?;
     let base = path.parent().unwrap_or(Path::new("."));
-    let mut desc = load_geometry(&root.scene, base)?;
+    let mut desc = geometry(&root.scene, base)?;
     desc.name = path.display().to_string();
     if let Some(g) = &root.ground {
         if !(g.y.is_finite() && g.half_size.is_finite() && g.half_size > 0.0) {
@@ -356,6 +375,16 @@ pub fn parse_scene_file(text: &str, path: &Path) -> Result<SceneDescription> {
     }
     root.shadows.validate().map_err(|e| err(strip_prefix(&e)))?;
     desc.shadows = root.shadows;
+    // What only the whole description can tell: geometry and lights in
+    // range of this camera.
+    let eye = desc.camera.eye;
+    desc.scene
+        .validate(eye)
+        .map_err(|e| err(strip_prefix(&e)))?;
+    for (i, l) in desc.lights.iter().enumerate() {
+        l.validate_relative_to(eye)
+            .map_err(|e| err(format!("light {i}: {}", strip_prefix(&e))))?;
+    }
     Ok(desc)
 }
 
@@ -420,6 +449,12 @@ fn load_geometry(spec: &str, base: &Path) -> Result<SceneDescription> {
     }
     let (camera, light) = default_view(&scene);
     let camera = scene.cameras.first().copied().unwrap_or(camera);
+    // Vertices finite in f64 (the loader checks that) can still be out of
+    // the f32 range of the GPU passes, relative to the camera.
+    scene.validate(camera.eye).map_err(|e| Error::Gltf {
+        path: path.clone(),
+        message: strip_prefix(&e),
+    })?;
     Ok(SceneDescription {
         name: path.display().to_string(),
         scene,

@@ -766,6 +766,32 @@ impl<'a> Loader<'a> {
                 pos.components
             ));
         }
+        // glTF 2.0 §3.7.2.1: positions are FLOAT; KHR_mesh_quantization
+        // adds (normalized or not) BYTE, UNSIGNED_BYTE, SHORT, UNSIGNED_SHORT.
+        if let Some(Checked::Valid(json::accessor::GenericComponentType(ct))) =
+            self.root.accessors.get(pos_acc).map(|a| a.component_type)
+        {
+            let quantized = self
+                .root
+                .extensions_used
+                .iter()
+                .chain(&self.root.extensions_required)
+                .any(|e| e == "KHR_mesh_quantization");
+            let allowed = match ct {
+                ComponentType::F32 => true,
+                ComponentType::I8 | ComponentType::U8 | ComponentType::I16 | ComponentType::U16 => {
+                    quantized
+                }
+                ComponentType::U32 => false,
+            };
+            if !allowed {
+                return Err(format!(
+                    "POSITION accessor {pos_acc} has componentType {}; positions must be FLOAT \
+                     (or BYTE, UNSIGNED_BYTE, SHORT, UNSIGNED_SHORT with KHR_mesh_quantization)",
+                    component_name(ct)
+                ));
+            }
+        }
         let n = pos.count();
         if n > u32::MAX as usize {
             return Err(format!("{n} vertices are too many"));

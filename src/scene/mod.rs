@@ -182,6 +182,16 @@ impl Camera {
         if fwd.cross(self.up).length_squared() == 0.0 {
             return bad("`up` is parallel to the view direction");
         }
+        // Finite inputs can still overflow: a target 1e300 away along two
+        // axes has an infinite distance, and its direction becomes NaN.
+        let (r, u, f) = self.basis();
+        if !(r.is_finite() && u.is_finite() && f.is_finite()) {
+            return bad(&format!(
+                "`eye`, `target` and `up` give no finite view direction \
+                 (target - eye = {fwd:?}, up = {:?})",
+                self.up
+            ));
+        }
         Ok(())
     }
 
@@ -205,6 +215,18 @@ impl Camera {
     }
 }
 
+/// The largest distance, along each axis, from the camera eye that a vertex,
+/// a view sample or a light (its position, and its extent) may have. The
+/// GPU passes work in `f32` relative to the eye and square such
+/// coordinates: 1e18² = 1e36 stays below `f32::MAX` (about 3.4e38).
+pub const MAX_RELATIVE_COORDINATE: f64 = 1e18;
+
+/// Whether `v` (relative to the camera eye) is finite and within
+/// [`MAX_RELATIVE_COORDINATE`] along every axis.
+pub fn within_range(v: DVec3) -> bool {
+    v.is_finite() && v.abs().max_element() <= MAX_RELATIVE_COORDINATE
+}
+
 /// A loaded scene: world-space meshes, materials and any cameras the source defined.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
@@ -220,6 +242,48 @@ impl Scene {
     /// Total number of triangles.
     pub fn triangle_count(&self) -> usize {
         self.meshes.iter().map(|m| m.indices.len()).sum()
+    }
+
+    /// Checks what the shadow passes and [`Scene::triangles`] rely on:
+    /// every vertex is finite and within [`MAX_RELATIVE_COORDINATE`] of
+    /// `eye` (the camera) along each axis, and every triangle's indices name
+    /// vertices of its mesh. The error names the mesh and the vertex or
+    /// triangle. The loaders check their input; this catches scenes built
+    /// or changed in code.
+    pub fn validate(&self, eye: DVec3) -> crate::Result<()> {
+        if !eye.is_finite() {
+            return Err(crate::Error::InvalidInput(format!(
+                "camera: `eye` is not finite: {eye:?}"
+            )));
+        }
+        for m in &self.meshes {
+            let bad = |what: String| {
+                Err(crate::Error::InvalidInput(format!(
+                    "mesh {:?}: {what}",
+                    m.name
+                )))
+            };
+            for (k, p) in m.positions.iter().enumerate() {
+                if !p.is_finite() {
+                    return bad(format!("vertex {k} is not finite: {p:?}"));
+                }
+                if !within_range(*p - eye) {
+                    return bad(format!(
+                        "vertex {k} at {p:?} is more than {MAX_RELATIVE_COORDINATE:e} from the camera eye \
+                         {eye:?} along an axis (the GPU passes work in f32 relative to the eye)"
+                    ));
+                }
+            }
+            let n = m.positions.len();
+            for (t, tri) in m.indices.iter().enumerate() {
+                if let Some(i) = tri.iter().find(|&&i| i as usize >= n) {
+                    return bad(format!(
+                        "triangle {t} has vertex index {i}, but the mesh has {n} vertices"
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// World-space bounding box (min, max); `None` for an empty scene.
