@@ -372,6 +372,29 @@ pub fn light_view(light: &Light, eye: DVec3) -> Option<LightView> {
     }
 }
 
+/// User view samples and the scene's triangles in GPU form, camera-relative
+/// (the shared first step of [`Engine::hard_shadows`] and
+/// [`Engine::soft_shadows`]).
+fn user_gpu_inputs(
+    scene: &Scene,
+    eye: DVec3,
+    samples: &[Option<ViewSample>],
+) -> (Vec<GpuViewSample>, Vec<GpuTriangle>) {
+    let with_ids: Vec<_> = samples
+        .iter()
+        .map(|s| {
+            s.map(|s| {
+                (
+                    (s.position - eye).as_vec3(),
+                    s.normal.as_vec3().normalize_or_zero(),
+                    s.triangle,
+                )
+            })
+        })
+        .collect();
+    gpu_inputs(&with_ids, &gpu_triangles(scene, eye))
+}
+
 /// The scene's triangles, camera-relative, in global-id order, each with
 /// whether the passes may treat it as part of a closed mesh. A closed mesh
 /// that contains the eye is treated as open: its view samples are on the
@@ -463,19 +486,7 @@ impl Engine {
         let lv = light_view(light, eye).ok_or_else(|| {
             crate::Error::InvalidInput("hard shadows need a point or directional light".into())
         })?;
-        let with_ids: Vec<_> = samples
-            .iter()
-            .map(|s| {
-                s.map(|s| {
-                    (
-                        (s.position - eye).as_vec3(),
-                        s.normal.as_vec3().normalize_or_zero(),
-                        s.triangle,
-                    )
-                })
-            })
-            .collect();
-        let (vs, ts) = gpu_inputs(&with_ids, &gpu_triangles(scene, eye));
+        let (vs, ts) = user_gpu_inputs(scene, eye, samples);
         self.hard_shadows_gpu(&vs, &ts, &lv, light_texels)
     }
 
@@ -495,19 +506,7 @@ impl Engine {
         let (sl, lv) = soft_light(light, eye, settings).ok_or_else(|| {
             crate::Error::InvalidInput("soft shadows need a light with extent".into())
         })?;
-        let with_ids: Vec<_> = samples
-            .iter()
-            .map(|s| {
-                s.map(|s| {
-                    (
-                        (s.position - eye).as_vec3(),
-                        s.normal.as_vec3().normalize_or_zero(),
-                        s.triangle,
-                    )
-                })
-            })
-            .collect();
-        let (vs, ts) = gpu_inputs(&with_ids, &gpu_triangles(scene, eye));
+        let (vs, ts) = user_gpu_inputs(scene, eye, samples);
         let out = self.hard.run(
             &self.ctx,
             &vs,

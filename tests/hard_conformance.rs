@@ -39,7 +39,7 @@ use alias_free_shadows::vulkan::ContextOptions;
 use glam::DVec3;
 
 mod common;
-use common::{engine_view_samples, scaled_and_moved, shared_asset_scenes};
+use common::{engine_view_samples, scaled_and_moved, shared_asset_scenes, SCALE_CASES};
 
 /// Relative size of the documented epsilon band around shadow boundaries.
 const BAND: f64 = 1e-5;
@@ -343,14 +343,9 @@ fn shared_assets_on_a_ground_plane_conform() {
 fn scaled_and_distant_scenes_conform() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
     for name in ["demo", "stairs", "fence"] {
-        let base = sized(file::load(&format!("builtin:{name}")).unwrap(), 64);
-        let mut base = base;
+        let mut base = sized(file::load(&format!("builtin:{name}")).unwrap(), 64);
         base.lights = vec![scene_light(&base)];
-        for (scale, offset) in [
-            (1e-4, DVec3::ZERO),
-            (1e5, DVec3::ZERO),
-            (1.0, DVec3::new(1e4, 3e3, -1e4)),
-        ] {
+        for (scale, offset) in SCALE_CASES {
             let desc = scaled_and_moved(&base, scale, offset);
             let light = desc.lights[0].clone();
             check(&mut engine, &desc.name, &desc, &light, 512);

@@ -10,7 +10,9 @@ use alias_free_shadows::vulkan::ContextOptions;
 use glam::DVec3;
 
 mod common;
-use common::{engine_view_samples, scaled_and_moved, shared_asset_scenes};
+use common::{
+    engine_view_samples, scaled_and_moved, shared_asset_scenes, sphere_light, SCALE_CASES,
+};
 
 /// The light samples as the engine has them (camera-relative f32), back in world space.
 fn engine_light(light: &Light, eye: glam::DVec3) -> LightSamples {
@@ -100,16 +102,7 @@ fn area_light(desc: &SceneDescription) -> Light {
     if l.is_area() {
         return l.clone();
     }
-    let (lo, hi) = desc.scene.bounds().unwrap();
-    let centre = l.center().unwrap_or(hi + (hi - lo) * 0.5);
-    Light {
-        shape: LightShape::Sphere {
-            position: centre,
-            radius: 0.05 * (hi - lo).length(),
-        },
-        samples: 128,
-        ..l.clone()
-    }
+    sphere_light(desc, 128)
 }
 
 fn scenes() -> Vec<SceneDescription> {
@@ -277,11 +270,7 @@ fn scaled_and_distant_scenes_conform() {
     for name in ["demo", "stairs"] {
         let mut base = sized(file::load(&format!("builtin:{name}")).unwrap());
         base.lights = vec![area_light(&base)];
-        for (scale, offset) in [
-            (1e-4, DVec3::ZERO),
-            (1e5, DVec3::ZERO),
-            (1.0, DVec3::new(1e4, 3e3, -1e4)),
-        ] {
+        for (scale, offset) in SCALE_CASES {
             let desc = scaled_and_moved(&base, scale, offset);
             let light = desc.lights[0].clone();
             let a = agreement(&mut engine, &desc, &light, SoftMode::Exact);

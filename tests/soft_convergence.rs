@@ -10,35 +10,20 @@
 //! larger than the 10% being tested (measured: its 256-sample exact RMSE
 //! came out below its 512-sample one).
 
-use alias_free_shadows::light::{Distribution, Light, LightShape};
+use alias_free_shadows::light::{Distribution, Light};
 use alias_free_shadows::oracle::Oracle;
 use alias_free_shadows::render::Engine;
 use alias_free_shadows::scene::file::{self, SceneDescription, ShadowSettings, SoftMode};
 use alias_free_shadows::vulkan::ContextOptions;
 
 mod common;
-use common::{engine_view_samples, shared_asset_scenes};
+use common::{engine_view_samples, shared_asset_scenes, sphere_light};
 
 const SIZE: u32 = 64;
 /// Light samples of the converged oracle image.
 const REFERENCE_SAMPLES: u32 = 4096;
 /// Look-up mode's RMSE may exceed exact mode's by this factor (issue 4).
 const LUT_OVER_EXACT: f64 = 1.10;
-
-/// A sphere light of radius 5% of the scene's diagonal at the scene's light.
-fn sphere_light(desc: &SceneDescription, samples: u32) -> Light {
-    let l = &desc.lights[0];
-    let (lo, hi) = desc.scene.bounds().unwrap();
-    let centre = l.center().unwrap_or(hi + (hi - lo) * 0.5);
-    Light {
-        shape: LightShape::Sphere {
-            position: centre,
-            radius: 0.05 * (hi - lo).length(),
-        },
-        samples,
-        ..l.clone()
-    }
-}
 
 fn rmse(got: &[f64], want: &[f64]) -> f64 {
     let se: f64 = got.iter().zip(want).map(|(g, w)| (g - w) * (g - w)).sum();

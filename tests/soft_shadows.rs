@@ -6,14 +6,13 @@
 //! triangles and the sphere rejection drop no triangle that blocks a sample.
 
 use alias_free_shadows::cpu::soft::{self, PlaneBits};
-use alias_free_shadows::light::{Light, LightShape};
 use alias_free_shadows::oracle::Oracle;
 use alias_free_shadows::render::{self, Engine};
-use alias_free_shadows::scene::file::{self, SceneDescription, ShadowSettings, SoftMode};
+use alias_free_shadows::scene::file::{self, ShadowSettings, SoftMode};
 use alias_free_shadows::vulkan::ContextOptions;
 
 mod common;
-use common::engine_view_samples;
+use common::{engine_view_samples, sphere_light};
 
 /// The share of (pixel, light sample) pairs where GPU and twin may differ:
 /// the GPU's `inversesqrt` and division round differently from the CPU's,
@@ -21,19 +20,6 @@ use common::engine_view_samples;
 /// into the next cell (LUT mode) or flip a light sample within rounding of
 /// a plane (exact mode).
 const TWIN_SHARE: f64 = 1e-4;
-
-fn sphere_light(desc: &SceneDescription, samples: u32) -> Light {
-    let l = &desc.lights[0];
-    let (lo, hi) = desc.scene.bounds().unwrap();
-    Light {
-        shape: LightShape::Sphere {
-            position: l.center().unwrap_or(hi + (hi - lo) * 0.5),
-            radius: 0.05 * (hi - lo).length(),
-        },
-        samples,
-        ..l.clone()
-    }
-}
 
 #[test]
 fn plane_lut_matches_the_twin() {

@@ -77,3 +77,28 @@ pub fn scaled_and_moved(
     out.name = format!("{} x{scale:e} +{offset}", desc.name);
     out
 }
+
+/// A sphere light of radius 5% of the scene's diagonal at the scene's
+/// light (or above its bounds when the light has no centre), `samples`
+/// samples, the rest as the scene's light.
+pub fn sphere_light(desc: &SceneDescription, samples: u32) -> alias_free_shadows::light::Light {
+    use alias_free_shadows::light::{Light, LightShape};
+    let l = &desc.lights[0];
+    let (lo, hi) = desc.scene.bounds().unwrap();
+    Light {
+        shape: LightShape::Sphere {
+            position: l.center().unwrap_or(hi + (hi - lo) * 0.5),
+            radius: 0.05 * (hi - lo).length(),
+        },
+        samples,
+        ..l.clone()
+    }
+}
+
+/// Issue 5's scale cases for [`scaled_and_moved`]: 1e-4 and 1e5 times the
+/// size, and 1e4 units from the origin.
+pub const SCALE_CASES: [(f64, glam::DVec3); 3] = [
+    (1e-4, glam::DVec3::ZERO),
+    (1e5, glam::DVec3::ZERO),
+    (1.0, glam::DVec3::new(1e4, 3e3, -1e4)),
+];
