@@ -16,6 +16,8 @@
 //! - [`gpu`] and [`cpu`]: each compute pass and its CPU twin;
 //! - [`dump`]: the on-disk result format shared by the GPU path and the oracle.
 
+pub mod baselines;
+pub mod bench;
 pub mod cpu;
 pub mod dump;
 pub mod error;

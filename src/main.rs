@@ -49,6 +49,11 @@ enum Command {
     },
     /// List the Vulkan devices and their limits.
     Info,
+    /// Run time against error: our soft shadows and the baselines (shadow
+    /// map + PCF, PCSS, one shadow map per light sample, the CPU oracle)
+    /// over their parameters, against a converged oracle image; writes
+    /// bench.csv and bench.png.
+    Bench(BenchArgs),
     /// Write a built-in scene as a binary glTF (.glb) file.
     Export {
         /// The built-in scene, e.g. builtin:demo or torus_knot:20000.
@@ -57,6 +62,36 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
+}
+
+#[derive(Args, Debug)]
+struct BenchArgs {
+    /// Folder for bench.csv and bench.png.
+    #[arg(long, default_value = "docs")]
+    out: PathBuf,
+    /// Image width and height (default 256, 32 with --quick).
+    #[arg(long)]
+    size: Option<u32>,
+    /// A tiny sweep on one scene, for tests.
+    #[arg(long)]
+    quick: bool,
+    /// Comma-separated scenes (default: builtin:demo, builtin:plane_sphere,
+    /// builtin:torus_knot:20000 and the Lantern of ../shared/assets when present;
+    /// with --quick builtin:plane_sphere).
+    #[arg(long, value_delimiter = ',')]
+    scenes: Option<Vec<String>>,
+    /// Timed runs per configuration; the median is reported (default 3, 1 with --quick).
+    #[arg(long)]
+    repeats: Option<u32>,
+    /// Light samples of the converged oracle image (default 4096, 256 with --quick).
+    #[arg(long)]
+    reference_samples: Option<u32>,
+    /// Use the Vulkan device whose name contains this text (also AFS_DEVICE).
+    #[arg(long, env = "AFS_DEVICE")]
+    device: Option<String>,
+    /// Do not show the progress bar.
+    #[arg(long)]
+    quiet: bool,
 }
 
 #[derive(Args, Debug)]
@@ -272,6 +307,40 @@ fn run(cli: Cli) -> Result<()> {
                     );
                 }
             }
+        }
+        Command::Bench(args) => {
+            let mut engine = Engine::new(&ContextOptions {
+                device: args.device.clone(),
+                ..Default::default()
+            })?;
+            let options = alias_free_shadows::bench::BenchOptions {
+                out: args.out.clone(),
+                size: args.size.unwrap_or(if args.quick { 32 } else { 256 }),
+                quick: args.quick,
+                scenes: args.scenes.clone().unwrap_or_else(|| {
+                    if args.quick {
+                        vec!["builtin:plane_sphere".into()]
+                    } else {
+                        alias_free_shadows::bench::default_scenes()
+                    }
+                }),
+                repeats: args.repeats.unwrap_or(if args.quick { 1 } else { 3 }),
+                reference_samples: args.reference_samples.unwrap_or(if args.quick {
+                    256
+                } else {
+                    4096
+                }),
+                progress: !args.quiet,
+            };
+            let t0 = std::time::Instant::now();
+            let rows = alias_free_shadows::bench::run(&mut engine, &options)?;
+            println!(
+                "{} configurations in {:.1} s; wrote {} and {}",
+                rows.len(),
+                t0.elapsed().as_secs_f64(),
+                options.out.join("bench.csv").display(),
+                options.out.join("bench.png").display()
+            );
         }
         Command::Info => {
             let devices = vulkan::list_devices()?;

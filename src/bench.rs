@@ -1,0 +1,633 @@
+//! `afs bench`: run time against error for the alias-free soft shadows and
+//! the [baselines](crate::baselines), on several scenes, against a
+//! converged oracle image (the CPU oracle with many Sobol light samples).
+//!
+//! Every scene gets a sphere light (radius 5% of the scene's diagonal, at
+//! the scene's light) and square images of [`BenchOptions::size`]. Each
+//! method runs over its parameters; a configuration's time is the median
+//! wall time of [`BenchOptions::repeats`] runs (the pipelines are warm: the
+//! engine and the baselines are made once), its error that of its first run
+//! over the pixels with a view sample: visibility RMSE, maximum absolute
+//! error, and the share of pixels off by more than 1/255. Results go to
+//! `bench.csv` and `bench.png` (log time against log RMSE, one curve per
+//! method, one panel per scene).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::baselines::{self, Baselines, Bias, PcfSettings, PcssSettings, PerSampleSettings};
+use crate::light::{Distribution, Light, LightShape};
+use crate::oracle::{Oracle, ViewSamples};
+use crate::render::Engine;
+use crate::scene::file::{self, SceneDescription, ShadowSettings, SoftMode};
+use crate::{Error, Result};
+
+/// What `afs bench` runs.
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    /// Folder for `bench.csv` and `bench.png` (made when missing).
+    pub out: PathBuf,
+    /// Image width and height.
+    pub size: u32,
+    /// A tiny sweep (for tests): few, cheap configurations.
+    pub quick: bool,
+    /// Scene specs ([`file::load`]); glTF models are put on a ground plane.
+    pub scenes: Vec<String>,
+    /// Timed runs per configuration (the median is reported).
+    pub repeats: u32,
+    /// Light samples of the converged oracle image.
+    pub reference_samples: u32,
+    /// Show a progress bar on standard error.
+    pub progress: bool,
+}
+
+/// The default scenes: three built-ins, and the Lantern model when
+/// `../shared/assets` (next to the crate) holds it.
+pub fn default_scenes() -> Vec<String> {
+    let mut s: Vec<String> = [
+        "builtin:demo",
+        "builtin:plane_sphere",
+        "builtin:torus_knot:20000",
+    ]
+    .map(String::from)
+    .to_vec();
+    let lantern =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets/Lantern/Lantern.gltf");
+    if lantern.is_file() {
+        s.push(lantern.display().to_string());
+    }
+    s
+}
+
+/// One configuration's result: a row of `bench.csv`.
+#[derive(Clone, Debug)]
+pub struct BenchRow {
+    pub scene: String,
+    /// `ours-lut`, `ours-exact`, `pcf`, `pcss`, `per-sample-maps` or `oracle`.
+    pub method: String,
+    /// The method's parameters, `key=value` separated by spaces.
+    pub params: String,
+    /// Light samples the method used (0: not sample-based).
+    pub light_samples: u32,
+    /// Median wall milliseconds.
+    pub time_ms: f64,
+    pub rmse: f64,
+    pub max_abs: f64,
+    /// Share of pixels off by more than 1/255.
+    pub share_over_1_255: f64,
+}
+
+/// One configuration of one method.
+#[derive(Clone, Copy, Debug)]
+enum Config {
+    Ours {
+        samples: u32,
+        mode: SoftMode,
+        lut_resolution: u32,
+    },
+    Pcf {
+        resolution: u32,
+        kernel: u32,
+    },
+    Pcss {
+        resolution: u32,
+        kernel: u32,
+    },
+    PerSample {
+        samples: u32,
+        resolution: u32,
+    },
+    Oracle {
+        samples: u32,
+    },
+}
+
+impl Config {
+    fn method(&self) -> &'static str {
+        match self {
+            Config::Ours {
+                mode: SoftMode::Lut,
+                ..
+            } => "ours-lut",
+            Config::Ours { .. } => "ours-exact",
+            Config::Pcf { .. } => "pcf",
+            Config::Pcss { .. } => "pcss",
+            Config::PerSample { .. } => "per-sample-maps",
+            Config::Oracle { .. } => "oracle",
+        }
+    }
+
+    fn params(&self) -> String {
+        match self {
+            Config::Ours {
+                samples,
+                lut_resolution,
+                mode,
+            } => match mode {
+                SoftMode::Lut => format!("samples={samples} lut={lut_resolution}"),
+                SoftMode::Exact => format!("samples={samples}"),
+            },
+            Config::Pcf { resolution, kernel } | Config::Pcss { resolution, kernel } => {
+                format!("map={resolution} kernel={kernel}")
+            }
+            Config::PerSample {
+                samples,
+                resolution,
+            } => format!("samples={samples} map={resolution}"),
+            Config::Oracle { samples } => format!("samples={samples}"),
+        }
+    }
+
+    fn light_samples(&self) -> u32 {
+        match self {
+            Config::Ours { samples, .. }
+            | Config::PerSample { samples, .. }
+            | Config::Oracle { samples } => *samples,
+            _ => 0,
+        }
+    }
+
+    /// Runs that are slow and deterministic are timed once.
+    fn repeats(&self, repeats: u32) -> u32 {
+        match self {
+            Config::Oracle { .. } => 1,
+            _ => repeats,
+        }
+    }
+}
+
+/// The parameter sweep. The default one is sized for about 5 minutes per
+/// scene at 256² on lavapipe (2 cores).
+fn sweep(quick: bool) -> Vec<Config> {
+    let mut c = Vec::new();
+    if quick {
+        c.push(Config::Ours {
+            samples: 32,
+            mode: SoftMode::Lut,
+            lut_resolution: 64,
+        });
+        c.push(Config::Pcf {
+            resolution: 256,
+            kernel: 1,
+        });
+        c.push(Config::Pcss {
+            resolution: 256,
+            kernel: 1,
+        });
+        c.push(Config::PerSample {
+            samples: 8,
+            resolution: 128,
+        });
+        c.push(Config::Oracle { samples: 8 });
+        return c;
+    }
+    for samples in [32, 128, 512, 1024] {
+        c.push(Config::Ours {
+            samples,
+            mode: SoftMode::Lut,
+            lut_resolution: 128,
+        });
+        c.push(Config::Ours {
+            samples,
+            mode: SoftMode::Exact,
+            lut_resolution: 128,
+        });
+    }
+    for lut_resolution in [64, 256] {
+        c.push(Config::Ours {
+            samples: 256,
+            mode: SoftMode::Lut,
+            lut_resolution,
+        });
+    }
+    for resolution in [2048, 4096, 8192] {
+        for kernel in [0, 1, 3] {
+            c.push(Config::Pcf { resolution, kernel });
+        }
+    }
+    for resolution in [2048, 4096] {
+        for kernel in [2, 4] {
+            c.push(Config::Pcss { resolution, kernel });
+        }
+    }
+    for samples in [16, 64, 256, 1024] {
+        c.push(Config::PerSample {
+            samples,
+            resolution: 1024,
+        });
+    }
+    c.push(Config::PerSample {
+        samples: 256,
+        resolution: 2048,
+    });
+    for samples in [16, 64, 256] {
+        c.push(Config::Oracle { samples });
+    }
+    c
+}
+
+/// A scene as the bench uses it: glTF models on a ground, `size`² pixels.
+fn load_scene(spec: &str, size: u32) -> Result<SceneDescription> {
+    let mut desc = file::load(spec)?;
+    if !spec.starts_with("builtin:") && !spec.ends_with(".toml") {
+        file::place_on_ground(&mut desc.scene);
+        let (camera, light) = file::default_view(&desc.scene);
+        desc.camera = camera;
+        desc.lights = vec![light];
+    }
+    desc.camera.width = size;
+    desc.camera.height = size;
+    desc.validate()?;
+    Ok(desc)
+}
+
+/// A sphere light of radius 5% of the scene's diagonal at the scene's
+/// first light (above the scene when it has no centre).
+pub fn bench_light(desc: &SceneDescription, samples: u32) -> Result<Light> {
+    let (lo, hi) = desc
+        .scene
+        .bounds()
+        .ok_or_else(|| Error::InvalidInput(format!("{}: the scene is empty", desc.name)))?;
+    let first = desc.lights.first();
+    let position = first
+        .and_then(|l| l.center())
+        .unwrap_or(hi + (hi - lo) * 0.5);
+    Ok(Light {
+        shape: LightShape::Sphere {
+            position,
+            radius: 0.05 * (hi - lo).length(),
+        },
+        samples,
+        distribution: first.map_or(Distribution::Poisson, |l| l.distribution),
+        seed: first.map_or(7, |l| l.seed),
+        color: [1.0; 3],
+        intensity: 1.0,
+    })
+}
+
+/// RMSE, maximum absolute error and share of values off by more than 1/255.
+pub fn errors(got: &[f64], want: &[f64]) -> (f64, f64, f64) {
+    let n = got.len().max(1) as f64;
+    let mut se = 0.0;
+    let mut max: f64 = 0.0;
+    let mut over = 0usize;
+    for (g, w) in got.iter().zip(want) {
+        let d = (g - w).abs();
+        se += d * d;
+        max = max.max(d);
+        over += usize::from(d > 1.0 / 255.0);
+    }
+    ((se / n).sqrt(), max, over as f64 / n)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Runs the sweep on every scene and writes `bench.csv` and `bench.png`
+/// into `options.out`; returns the rows.
+pub fn run(engine: &mut Engine, options: &BenchOptions) -> Result<Vec<BenchRow>> {
+    if options.size == 0 || options.size > 2048 {
+        return Err(Error::InvalidInput(format!(
+            "bench size must be in 1..=2048, got {}",
+            options.size
+        )));
+    }
+    if options.repeats == 0 {
+        return Err(Error::InvalidInput(
+            "bench repeats must be at least 1".into(),
+        ));
+    }
+    if options.scenes.is_empty() {
+        return Err(Error::InvalidInput("no scenes to bench".into()));
+    }
+    let scenes: Vec<SceneDescription> = options
+        .scenes
+        .iter()
+        .map(|s| load_scene(s, options.size))
+        .collect::<Result<_>>()?;
+    std::fs::create_dir_all(&options.out).map_err(|e| Error::io(&options.out, e))?;
+    let configs = sweep(options.quick);
+    let mut baselines = Baselines::new(engine.context())?;
+    let pb = options.progress.then(|| {
+        let pb = indicatif::ProgressBar::new((scenes.len() * (configs.len() + 1)) as u64);
+        pb.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{msg:>40} [{bar:30}] {pos}/{len}, {elapsed} (eta {eta})",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+        pb
+    });
+    let mut rows = Vec::new();
+    for desc in &scenes {
+        let short = desc
+            .name
+            .rsplit('/')
+            .next()
+            .unwrap_or(&desc.name)
+            .to_string();
+        if let Some(pb) = &pb {
+            pb.set_message(format!("{short}: reference"));
+        }
+        let eye = desc.camera.eye;
+        let oracle = Oracle::new(&desc.scene.triangles(), eye);
+        let view = f32_view_samples(&oracle, desc);
+        let pixels: Vec<usize> = (0..view.samples.len())
+            .filter(|&i| view.samples[i].is_some())
+            .collect();
+        let reference_light = Light {
+            distribution: Distribution::Sobol,
+            ..bench_light(desc, options.reference_samples)?
+        };
+        let reference = oracle.visibility(&view, &reference_light.light_samples(), None);
+        let want: Vec<f64> = pixels.iter().map(|&i| reference[i] as f64).collect();
+        if let Some(pb) = &pb {
+            pb.inc(1);
+        }
+        for config in &configs {
+            if let Some(pb) = &pb {
+                pb.set_message(format!("{short}: {} {}", config.method(), config.params()));
+            }
+            let samples = config.light_samples().max(1);
+            let light = bench_light(desc, samples)?;
+            let mut times = Vec::new();
+            let mut first = None;
+            for _ in 0..config.repeats(options.repeats) {
+                let t0 = Instant::now();
+                let vis = run_config(engine, &mut baselines, desc, &view, &light, config)?;
+                times.push(t0.elapsed().as_secs_f64() * 1e3);
+                first.get_or_insert(vis);
+            }
+            let vis = first.expect("at least one run");
+            let got: Vec<f64> = pixels
+                .iter()
+                .map(|&i| vis[i].unwrap_or(0.0) as f64)
+                .collect();
+            let (rmse, max_abs, over) = errors(&got, &want);
+            rows.push(BenchRow {
+                scene: short.clone(),
+                method: config.method().into(),
+                params: config.params(),
+                light_samples: config.light_samples(),
+                time_ms: median(times),
+                rmse,
+                max_abs,
+                share_over_1_255: over,
+            });
+            if let Some(pb) = &pb {
+                pb.inc(1);
+            }
+        }
+    }
+    if let Some(pb) = pb {
+        pb.finish_and_clear();
+    }
+    engine.context().check_validation()?;
+    write_csv(&options.out.join("bench.csv"), &rows)?;
+    plot(&options.out.join("bench.png"), &rows)?;
+    Ok(rows)
+}
+
+fn run_config(
+    engine: &mut Engine,
+    baselines: &mut Baselines,
+    desc: &SceneDescription,
+    view: &ViewSamples,
+    light: &Light,
+    config: &Config,
+) -> Result<Vec<Option<f32>>> {
+    let (scene, eye, samples) = (&desc.scene, desc.camera.eye, &view.samples);
+    let bias = Bias::default();
+    let ctx = engine.context();
+    Ok(match *config {
+        Config::Ours {
+            mode,
+            lut_resolution,
+            ..
+        } => {
+            let settings = ShadowSettings {
+                mode,
+                lut_resolution,
+                ..Default::default()
+            };
+            engine
+                .soft_shadows(scene, eye, samples, light, &settings)?
+                .visibility
+        }
+        Config::Pcf { resolution, kernel } => {
+            let s = PcfSettings {
+                resolution,
+                kernel,
+                bias,
+            };
+            baselines
+                .pcf(ctx, scene, eye, samples, light, &s)?
+                .visibility
+        }
+        Config::Pcss { resolution, kernel } => {
+            let s = PcssSettings {
+                resolution,
+                kernel,
+                max_radius_texels: resolution as f32 / 16.0,
+                bias,
+            };
+            baselines
+                .pcss(ctx, scene, eye, samples, light, &s)?
+                .visibility
+        }
+        Config::PerSample { resolution, .. } => {
+            let s = PerSampleSettings {
+                resolution,
+                kernel: 0,
+                bias,
+            };
+            baselines
+                .per_sample_maps(ctx, scene, eye, samples, light, &s)?
+                .visibility
+        }
+        Config::Oracle { .. } => baselines::oracle(scene, eye, samples, light)?.visibility,
+    })
+}
+
+/// The oracle's primary view samples rounded through camera-relative f32,
+/// as the GPU passes see them, so that every method sees the same points.
+pub fn f32_view_samples(oracle: &Oracle, desc: &SceneDescription) -> ViewSamples {
+    let eye = desc.camera.eye;
+    let mut view = oracle.primary_view_samples(&desc.camera);
+    for s in view.samples.iter_mut().flatten() {
+        s.position = eye + (s.position - eye).as_vec3().as_dvec3();
+        s.normal = s.normal.as_vec3().as_dvec3();
+    }
+    view
+}
+
+fn write_csv(path: &Path, rows: &[BenchRow]) -> Result<()> {
+    let mut s = String::from(
+        "scene,method,params,light_samples,time_ms,rmse,max_abs_error,share_over_1_255\n",
+    );
+    for r in rows {
+        s.push_str(&format!(
+            "{},{},{},{},{:.3},{:.6e},{:.6e},{:.6e}\n",
+            r.scene,
+            r.method,
+            r.params,
+            r.light_samples,
+            r.time_ms,
+            r.rmse,
+            r.max_abs,
+            r.share_over_1_255
+        ));
+    }
+    std::fs::write(path, s).map_err(|e| Error::io(path, e))
+}
+
+/// Registers a system sans-serif font for the plot's text, when one of the
+/// usual files exists; without one the plot has no text.
+fn register_font() -> bool {
+    use std::sync::OnceLock;
+    static FONT: OnceLock<bool> = OnceLock::new();
+    *FONT.get_or_init(|| {
+        for path in [
+            "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+            "/usr/share/fonts/TTF/DejaVuSans.ttf",
+            "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+            "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
+        ] {
+            if let Ok(bytes) = std::fs::read(path) {
+                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                if plotters::style::register_font(
+                    "sans-serif",
+                    plotters::style::FontStyle::Normal,
+                    bytes,
+                )
+                .is_ok()
+                {
+                    return true;
+                }
+            }
+        }
+        false
+    })
+}
+
+const METHODS: [&str; 6] = [
+    "ours-lut",
+    "ours-exact",
+    "pcf",
+    "pcss",
+    "per-sample-maps",
+    "oracle",
+];
+
+/// Log time against log RMSE, one curve per method (points in time order),
+/// one panel per scene.
+fn plot(path: &Path, rows: &[BenchRow]) -> Result<()> {
+    use plotters::prelude::*;
+    let err = |e: &dyn std::fmt::Display| Error::InvalidInput(format!("plot: {e}"));
+    let text = register_font();
+    let mut scenes: Vec<&str> = Vec::new();
+    for r in rows {
+        if !scenes.contains(&r.scene.as_str()) {
+            scenes.push(&r.scene);
+        }
+    }
+    let cols = scenes.len().clamp(1, 2);
+    let rows_n = scenes.len().div_ceil(cols).max(1);
+    let size = (640 * cols as u32, 480 * rows_n as u32);
+    // Drawn into memory and written with the `image` crate (plotters'
+    // own encoder would pull in a second `image`).
+    let mut pixels = vec![0u8; 3 * size.0 as usize * size.1 as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let panels = root.split_evenly((rows_n, cols));
+        let floor = 1e-5;
+        for (scene, area) in scenes.iter().zip(panels.iter()) {
+            let mine: Vec<&BenchRow> = rows.iter().filter(|r| r.scene == *scene).collect();
+            let (mut t0, mut t1, mut e0, mut e1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+            for r in &mine {
+                let t = r.time_ms.max(1e-3);
+                let e = r.rmse.max(floor);
+                (t0, t1, e0, e1) = (t0.min(t), t1.max(t), e0.min(e), e1.max(e));
+            }
+            if mine.is_empty() {
+                continue;
+            }
+            let mut builder = ChartBuilder::on(area);
+            builder.margin(10);
+            if text {
+                builder
+                    .caption(*scene, ("sans-serif", 18))
+                    .x_label_area_size(35)
+                    .y_label_area_size(60);
+            }
+            let mut chart = builder
+                .build_cartesian_2d(
+                    (t0 / 1.5..t1 * 1.5).log_scale(),
+                    (e0 / 1.5..e1 * 1.5).log_scale(),
+                )
+                .map_err(|e| err(&e))?;
+            let mut mesh = chart.configure_mesh();
+            if text {
+                mesh.x_desc("time (ms)").y_desc("visibility RMSE");
+            } else {
+                mesh.disable_x_mesh().disable_y_mesh();
+            }
+            mesh.draw().map_err(|e| err(&e))?;
+            for (k, method) in METHODS.iter().enumerate() {
+                let mut pts: Vec<(f64, f64)> = mine
+                    .iter()
+                    .filter(|r| r.method == *method)
+                    .map(|r| (r.time_ms.max(1e-3), r.rmse.max(floor)))
+                    .collect();
+                if pts.is_empty() {
+                    continue;
+                }
+                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let color = Palette99::pick(k).to_rgba();
+                let series = chart
+                    .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                    .map_err(|e| err(&e))?;
+                if text {
+                    series.label(*method).legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                    });
+                }
+                chart
+                    .draw_series(pts.iter().map(|p| Circle::new(*p, 3, color.filled())))
+                    .map_err(|e| err(&e))?;
+            }
+            if text {
+                chart
+                    .configure_series_labels()
+                    .background_style(WHITE.mix(0.8))
+                    .border_style(BLACK)
+                    .position(SeriesLabelPosition::UpperRight)
+                    .draw()
+                    .map_err(|e| err(&e))?;
+            }
+        }
+        root.present().map_err(|e| err(&e))?;
+    }
+    image::RgbImage::from_raw(size.0, size.1, pixels)
+        .ok_or_else(|| Error::Image("plot buffer has the wrong size".into()))?
+        .save_with_format(path, image::ImageFormat::Png)
+        .map_err(|e| Error::Image(format!("{}: {e}", path.display())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn errors_of_known_values() {
+        let (rmse, max, over) = errors(&[0.0, 1.0, 0.5, 0.5], &[0.0, 0.0, 0.5, 0.501]);
+        assert!((rmse - 0.5).abs() < 1e-3);
+        assert_eq!(max, 1.0);
+        assert_eq!(over, 0.25);
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
+    }
+}
