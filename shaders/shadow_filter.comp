@@ -11,8 +11,8 @@
 // else the sample's own depth. The bias subtracted from that depth is
 // (constant + slope * tan(angle to the light)) receiver texel footprints,
 // and the sample is first moved off its surface by normal_offset
-// footprints. Taps outside the map are lit; so are samples facing away
-// from the light (unlit: 0 is added) — the oracle's rule.
+// footprints. Taps outside the map are lit; samples facing away from the
+// light are unlit (0 is added), the oracle's rule.
 
 #include "common.glsl"
 

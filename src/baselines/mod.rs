@@ -178,7 +178,10 @@ impl Baselines {
     ) -> Result<BaselineResult> {
         validate_shadow_inputs(scene, eye, samples, light)?;
         check_resolution(settings.resolution)?;
-        if settings.kernel == 0 || !(settings.max_radius_texels > 0.0) {
+        if settings.kernel == 0
+            || settings.max_radius_texels.is_nan()
+            || settings.max_radius_texels <= 0.0
+        {
             return Err(Error::InvalidInput(
                 "PCSS needs a kernel radius of at least 1 and a positive largest radius".into(),
             ));
