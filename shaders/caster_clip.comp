@@ -79,7 +79,12 @@ void main() {
         for (int j = 0; j < poly_n; j++) {
             accumulate(poly[j], point, z_eps, lf.window, z_min, lo, hi, touches_light);
         }
-        any_face = emit_pair(i, f, lf, t0, t1, t2, z_min, lo, hi, touches_light) || any_face;
+        // A clipped vertex carries the rounding of the whole edge it cuts:
+        // a few ulps of the vertices' magnitude, over its depth when projected.
+        float t_max = max(max(max(abs(t0.x), abs(t0.y)), max(abs(t0.z), abs(t1.x))),
+                          max(max(abs(t1.y), abs(t1.z)), max(max(abs(t2.x), abs(t2.y)), abs(t2.z))));
+        float clip_scale = point ? 2.0 * t_max * face_scale(lf, true) / max(z_min, 1e-30) : 2.0 * t_max;
+        any_face = emit_pair(i, f, lf, t0, t1, t2, z_min, lo, hi, touches_light, clip_scale) || any_face;
     }
     atomicAdd(counters[any_face ? COUNTER_RASTERIZED : COUNTER_CULLED], 1u);
 }

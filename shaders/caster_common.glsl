@@ -37,6 +37,23 @@ vec2 window_end(LightFace lf) {
     return lf.window.xy + vec2(float(pc.sizes.z)) / lf.window.zw;
 }
 
+// The magnitude of a face's projected coordinates, whose f32 rounding
+// (ulps of it, times texels per unit) the texel margins absorb: the
+// window's corners, plus 1 for a perspective face (x = X/Z carries the
+// error of X and of Z) or the depth for an orthographic one (X = q·right
+// carries the error of all of q). Without it a window zoomed onto a tight
+// cluster of samples (a texel a few ulps wide) misses casters.
+float face_scale(LightFace lf, bool point) {
+    vec2 e = window_end(lf);
+    return max(max(abs(lf.window.x), abs(e.x)), max(abs(lf.window.y), abs(e.y)))
+        + (point ? 1.0 : abs(lf.far.x));
+}
+
+// The texel margin for projected coordinates of magnitude `scale`.
+vec2 texel_margin(vec4 window, float scale) {
+    return vec2(TEXEL_MARGIN) + (ROUNDING_ULPS * 1.1920929e-7 * scale) * window.zw;
+}
+
 // Texel-space coordinates of a projected face point (cpu::light_view::texel_of, unfloored).
 vec2 to_texel(vec4 window, vec2 pr) {
     return vec2((pr.x - window.x) * window.z, (pr.y - window.y) * window.w);
@@ -71,9 +88,11 @@ void append_pair(uint i, uint f, uvec4 rect, vec4 e0, vec4 e1, vec4 e2) {
 
 // Appends the (caster i, face f) pair from its clipped polygon's bounds
 // (z_min, lo, hi, touches_light) and its unclipped projection t0..t2;
-// false when the polygon lies beyond the farthest view sample.
+// false when the polygon lies beyond the farthest view sample. `scale`:
+// the magnitude of the polygon's projected coordinates beyond the face's
+// (caster_clip: what clipping far vertices adds).
 bool emit_pair(uint i, uint f, LightFace lf, vec3 t0, vec3 t1, vec3 t2, float z_min, vec2 lo,
-               vec2 hi, bool touches_light) {
+               vec2 hi, bool touches_light, float scale) {
     bool point = is_point_light();
     float z_far = lf.far.x;
     float z_eps = z_far * 1e-6;
@@ -83,11 +102,13 @@ bool emit_pair(uint i, uint f, LightFace lf, vec3 t0, vec3 t1, vec3 t2, float z_
     uint res = pc.sizes.z;
     float max_t = float(res) - 1.0;
     uvec4 rect;
-    if (touches_light || any(isinf(lo)) || any(isinf(hi)) || any(isnan(lo)) || any(isnan(hi))) {
+    vec2 m = texel_margin(lf.window, face_scale(lf, point) + scale);
+    if (touches_light || any(isinf(lo)) || any(isinf(hi)) || any(isnan(lo)) || any(isnan(hi))
+        || any(isinf(m)) || any(isnan(m))) {
         rect = uvec4(0u, 0u, res - 1u, res - 1u);
     } else {
-        rect = uvec4(clamp(floor(lo.x - TEXEL_MARGIN), 0.0, max_t), clamp(floor(lo.y - TEXEL_MARGIN), 0.0, max_t),
-                     clamp(floor(hi.x + TEXEL_MARGIN), 0.0, max_t), clamp(floor(hi.y + TEXEL_MARGIN), 0.0, max_t));
+        rect = uvec4(clamp(floor(lo.x - m.x), 0.0, max_t), clamp(floor(lo.y - m.y), 0.0, max_t),
+                     clamp(floor(hi.x + m.x), 0.0, max_t), clamp(floor(hi.y + m.y), 0.0, max_t));
     }
     // Edge functions of the unclipped projection when all of it is in front of the light.
     vec4 pe[3] = vec4[3](vec4(0.0), vec4(0.0), vec4(0.0));
@@ -95,19 +116,27 @@ bool emit_pair(uint i, uint f, LightFace lf, vec3 t0, vec3 t1, vec3 t2, float z_
     if (front) {
         vec3 tri[3] = vec3[3](t0, t1, t2);
         vec2 tt[3];
+        float reach = 0.0; // the vertices' projected magnitude
         for (int k = 0; k < 3; k++) {
-            tt[k] = to_texel(lf.window, point ? tri[k].xy / tri[k].z : tri[k].xy);
+            vec2 pr = point ? tri[k].xy / tri[k].z : tri[k].xy;
+            reach = max(reach, max(abs(pr.x), abs(pr.y)));
+            tt[k] = to_texel(lf.window, pr);
         }
         vec2 ab = tt[1] - tt[0], ac = tt[2] - tt[0];
         float area = ab.x * ac.y - ab.y * ac.x;
-        if (!isinf(area) && !isnan(area) && abs(area) >= 1e-6) {
+        vec2 em = texel_margin(lf.window, face_scale(lf, point) + reach);
+        if (!isinf(area) && !isnan(area) && abs(area) >= 1e-6 && !any(isinf(em)) && !any(isnan(em))) {
             float s = sign(area);
             for (int k = 0; k < 3; k++) {
                 vec2 a = tt[k], b = tt[(k + 1) % 3];
                 float ea = -(b.y - a.y) * s;
                 float eb = (b.x - a.x) * s;
-                pe[k] = vec4(ea, eb, -(ea * a.x + eb * a.y), 1.0);
+                pe[k] = vec4(ea, eb, -(ea * a.x + eb * a.y), 0.0);
             }
+            // The edges' test margin rides in e0.w and e1.w (> 0: edges valid).
+            pe[0].w = em.x;
+            pe[1].w = em.y;
+            pe[2].w = 1.0;
         }
     }
     append_pair(i, f, rect, pe[0], pe[1], pe[2]);

@@ -59,8 +59,10 @@ void soft_caster(uint i, vec3 v[3], vec3 n, bool closed) {
         float z_far = lf.far.x;
         float z_min = min(t[0].z, min(t[1].z, t[2].z));
         float z_max = max(t[0].z, max(t[1].z, t[2].z));
-        if (z_min > z_far * (1.0 + 1e-5) + 1e-30 || z_max < -reach) {
-            continue; // beyond every view sample, or wholly behind the light
+        // A blocker lies on a segment from a sample (depth <= z_far) to a
+        // light sample (depth <= reach): beyond both, it hides nothing.
+        if (z_min > max(z_far, reach) * (1.0 + 1e-5) + 1e-30 || z_max < -reach) {
+            continue; // beyond every view sample and the light, or wholly behind the light
         }
         uvec4 rect = uvec4(0u, 0u, res - 1u, res - 1u);
         if (z_min > reach) {
@@ -94,8 +96,15 @@ void soft_caster(uint i, vec3 v[3], vec3 n, bool closed) {
             } else if (hi.x < -1.0 || hi.y < -1.0 || lo.x > float(res) + 1.0 || lo.y > float(res) + 1.0) {
                 continue;
             } else {
-                rect = uvec4(clamp(floor(lo.x - 1.0), 0.0, max_t), clamp(floor(lo.y - 1.0), 0.0, max_t),
-                             clamp(floor(hi.x + 1.0), 0.0, max_t), clamp(floor(hi.y + 1.0), 0.0, max_t));
+                // Plus the rounding of coordinates this far out (face_scale).
+                float reach = max(max(abs(lo.x), abs(hi.x)) / lf.window.z, max(abs(lo.y), abs(hi.y)) / lf.window.w);
+                vec2 m = vec2(1.0 - TEXEL_MARGIN) + texel_margin(lf.window, face_scale(lf, true) + reach);
+                if (any(isinf(m)) || any(isnan(m))) {
+                    rect = uvec4(0u, 0u, res - 1u, res - 1u);
+                } else {
+                    rect = uvec4(clamp(floor(lo.x - m.x), 0.0, max_t), clamp(floor(lo.y - m.y), 0.0, max_t),
+                                 clamp(floor(hi.x + m.x), 0.0, max_t), clamp(floor(hi.y + m.y), 0.0, max_t));
+                }
             }
         }
         append_pair(i, f, rect, vec4(0.0), vec4(0.0), vec4(0.0));
@@ -142,24 +151,28 @@ void main() {
     cp.support = vec4(ns, -dot(ns, v[0]));
     vec4 e[3];
     float side[3];
+    // Every edge plane's inside is the triangle's side of it, which one
+    // determinant gives for all three: (a - o)·n = -s_light for a point
+    // light, (c - a)·((b - a) x d) = s_light for a directional one. Taken
+    // per edge from its opposite vertex instead, a sliver's short side
+    // rounds the wrong way and its region becomes an unbounded wedge.
+    float inside_side = point ? -sign(s_light) : sign(s_light);
     for (int k = 0; k < 3; k++) {
         vec3 a = v[k], b = v[(k + 1) % 3], c = v[(k + 2) % 3];
         // Canonical endpoint order (lexicographic), shared by both triangles of an edge.
         bool swap_ab = a.x > b.x || (a.x == b.x && (a.y > b.y || (a.y == b.y && a.z > b.z)));
         vec3 lo = swap_ab ? b : a, hi = swap_ab ? a : b;
         vec3 m;
-        float w, inside;
+        float w;
         if (point) {
             m = cross(lo - o, hi - lo);
             w = 0.0;
-            inside = dot(m, c - o);
         } else {
             m = cross(hi - lo, pc.direction.xyz);
             w = -dot(m, lo);
-            inside = dot(m, c) + w;
         }
         e[k] = vec4(m, w);
-        side[k] = inside < 0.0 ? -1.0 : 1.0;
+        side[k] = swap_ab ? -inside_side : inside_side;
     }
     cp.side = vec4(side[0], side[1], side[2], 0.0);
     cp.edge0 = e[0];
@@ -207,7 +220,7 @@ void main() {
         accumulate(t0, point, z_eps, lf.window, z_min, lo, hi, touches_light);
         accumulate(t1, point, z_eps, lf.window, z_min, lo, hi, touches_light);
         accumulate(t2, point, z_eps, lf.window, z_min, lo, hi, touches_light);
-        any_face = emit_pair(i, f, lf, t0, t1, t2, z_min, lo, hi, touches_light) || any_face;
+        any_face = emit_pair(i, f, lf, t0, t1, t2, z_min, lo, hi, touches_light, 0.0) || any_face;
     }
     if (clip_mask != 0u) {
         uint slot = atomicAdd(counters[COUNTER_CLIP_ITEMS], 1u);

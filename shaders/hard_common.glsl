@@ -21,6 +21,9 @@
 layout(constant_id = 2) const uint OCC_PAIR_CHUNK = 64u;
 layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 #define TEXEL_MARGIN 0.01
+// Rounding of projected coordinates that the texel margins absorb, in ulps
+// of their magnitude (caster_common.glsl: face_scale, texel_margin).
+#define ROUNDING_ULPS 32.0
 // GpuTriangle flags bit: the triangle belongs to a closed mesh.
 #define TRIANGLE_CLOSED 4u
 
@@ -46,7 +49,8 @@ struct HardPush {
     vec4 dir_right;    // directional light's face basis: right
     vec4 dir_up;       // and up (forward = direction)
     uvec4 soft;        // x: 128-sample block, y: light samples (0: hard shadows), z: LUT resolution, w: SOFT_* flags
-    vec4 soft_light;   // x: light bounding radius R (light samples within R of origin), y: influence polygon degree
+    vec4 soft_light;   // x: light bounding radius R (light samples within R of origin), y: influence polygon degree,
+                       // z: global id of this run's triangle 0 (uint bits; triangle batches)
 };
 #define SOFT_EXACT 1u
 
@@ -85,12 +89,14 @@ bool inside_edge(vec4 e, float side, vec3 q) {
 // One (caster, face) pair to rasterize.
 struct CasterFace {
     uvec4 ids;    // x: triangle, y: face, z: rect min (x | y << 16), w: rect max
-    vec4 e0;      // texel-space edge a, b, c; w: 1 when edges are valid
-    vec4 e1;
+    vec4 e0;      // texel-space edge a, b, c; w: the x margin (> 0) when edges are valid
+    vec4 e1;      // w: the y margin
     vec4 e2;
 };
 
 layout(push_constant) uniform Push { HardPush pc; };
+// The global id of this run's triangle i: view samples name their own triangle globally.
+uint global_triangle(uint i) { return i + floatBitsToUint(pc.soft_light.z); }
 
 // Soft shadows: the light is the bounding sphere (origin, R) of its samples.
 bool is_soft() { return pc.soft.y != 0u; }
@@ -181,10 +187,10 @@ uvec2 texel_of(vec4 window, float x, float y, uint resolution) {
 }
 
 // Conservative overlap of a texel-space square with a triangle's edges
-// (cpu::casters::square_overlaps).
-bool square_overlaps(vec3 e0, vec3 e1, vec3 e2, vec2 lo, vec2 hi) {
+// (cpu::casters::square_overlaps); `margin`: the pair's texel margin.
+bool square_overlaps(vec3 e0, vec3 e1, vec3 e2, vec2 margin, vec2 lo, vec2 hi) {
     vec2 c = 0.5 * (lo + hi);
-    vec2 h = 0.5 * (hi - lo) + vec2(TEXEL_MARGIN);
+    vec2 h = 0.5 * (hi - lo) + margin;
     return e0.x * c.x + e0.y * c.y + e0.z + abs(e0.x) * h.x + abs(e0.y) * h.y >= 0.0
         && e1.x * c.x + e1.y * c.y + e1.z + abs(e1.x) * h.x + abs(e1.y) * h.y >= 0.0
         && e2.x * c.x + e2.y * c.y + e2.z + abs(e2.x) * h.x + abs(e2.y) * h.y >= 0.0;

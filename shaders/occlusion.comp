@@ -76,7 +76,7 @@ void main() {
                 if (any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax))) {
                     continue;
                 }
-                if (cf.e0.w != 0.0 && !square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, lo, hi)) {
+                if (cf.e0.w != 0.0 && !square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, vec2(cf.e0.w, cf.e1.w), lo, hi)) {
                     continue;
                 }
                 if (sample_chunk == 0u) {
@@ -92,7 +92,7 @@ void main() {
                 for (uint s = list_begin; s < list_end; s++) {
                     uvec4 qb = texelFetch(list_samples_tb, int(s));
                     vec4 qs = vec4(uintBitsToFloat(qb.xyz), 0.0);
-                    if (qb.w == cf.ids.x) {
+                    if (qb.w == global_triangle(cf.ids.x)) {
                         continue; // never onto a sample of the same triangle
                     }
                     tests++;

@@ -161,7 +161,7 @@ void main() {
             uvec4 ids = texelFetch(pairs_tb, int(4u * pi));
             uvec2 rmin = uvec2(ids.z & 0xffffu, ids.z >> 16);
             uvec2 rmax = uvec2(ids.w & 0xffffu, ids.w >> 16);
-            if (any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax)) || qb.w == ids.x) {
+            if (any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax)) || qb.w == global_triangle(ids.x)) {
                 continue; // outside the influence region, or the sample's own triangle
             }
             uvec4 t0 = texelFetch(triangles_tb, int(3u * ids.x));

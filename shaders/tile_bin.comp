@@ -31,7 +31,7 @@ void main() {
             // The part of the tile inside the rectangle.
             vec2 lo = vec2(max(uvec2(tx, ty) * TILE, rmin));
             vec2 hi = vec2(min(uvec2(tx, ty) * TILE + TILE - 1u, rmax) + 1u);
-            if (edges && !square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, lo, hi)) {
+            if (edges && !square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, vec2(cf.e0.w, cf.e1.w), lo, hi)) {
                 continue;
             }
             uint tile = base + ty * pc.more.y + tx;

@@ -392,7 +392,66 @@ fn user_gpu_inputs(
             })
         })
         .collect();
-    gpu_inputs(&with_ids, &gpu_triangles(scene, eye))
+    let mut triangles = gpu_triangles(scene, eye);
+    let opened = closed_meshes_seen_from_inside(scene, samples);
+    let meshes = scene.triangles();
+    for (t, m) in triangles.iter_mut().zip(&meshes) {
+        t.1 &= !opened[m.mesh as usize];
+    }
+    gpu_inputs(&with_ids, &triangles)
+}
+
+/// Per mesh: whether some user view sample may see a closed mesh from the
+/// inside, so that the passes must treat it as open (skipping the faces
+/// that face the light, paper §3.3, is right only for samples outside the
+/// solid). That is a sample on one of its triangles whose normal opposes
+/// the triangle's winding, or any sample not on its triangles that lies in
+/// (or on) its bounding box. Treating a closed mesh as open is always
+/// correct, only slower.
+fn closed_meshes_seen_from_inside(scene: &Scene, samples: &[Option<ViewSample>]) -> Vec<bool> {
+    let mut opened = vec![false; scene.meshes.len()];
+    let boxes: Vec<Option<(DVec3, DVec3)>> = scene
+        .meshes
+        .iter()
+        .map(|m| {
+            if !m.closed || m.positions.is_empty() {
+                return None;
+            }
+            let (lo, hi) = m
+                .positions
+                .iter()
+                .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+                    (lo.min(*p), hi.max(*p))
+                });
+            // A margin for samples rounded just outside the surface.
+            let margin = (hi - lo).length() * 1e-6 + lo.abs().max(hi.abs()).max_element() * 1e-12;
+            Some((lo - margin, hi + margin))
+        })
+        .collect();
+    if boxes.iter().all(Option::is_none) {
+        return opened;
+    }
+    let triangles = scene.triangles();
+    for s in samples.iter().flatten() {
+        // The closed mesh the sample lies on, seen from the outside.
+        let mut own = None;
+        if let Some(t) = triangles.get(s.triangle as usize).filter(|t| t.closed) {
+            let v = t.vertices;
+            if (v[1] - v[0]).cross(v[2] - v[0]).dot(s.normal) > 0.0 {
+                own = Some(t.mesh as usize);
+            } else {
+                opened[t.mesh as usize] = true;
+            }
+        }
+        for (m, b) in boxes.iter().enumerate() {
+            if let Some((lo, hi)) = b {
+                if own != Some(m) && s.position.cmpge(*lo).all() && s.position.cmple(*hi).all() {
+                    opened[m] = true;
+                }
+            }
+        }
+    }
+    opened
 }
 
 /// The scene's triangles, camera-relative, in global-id order, each with
@@ -530,6 +589,14 @@ impl Engine {
     /// device's binding limits. For tests of that path; `None` lifts it.
     pub fn set_view_sample_batch_limit(&mut self, limit: Option<usize>) {
         self.hard.set_batch_limit(limit);
+    }
+
+    /// Limits the triangles per shadow run: more are split into batches
+    /// whose results are combined, as they are anyway when the caster
+    /// buffers would pass the device's binding limits (scenes of millions
+    /// of triangles). For tests of that path; `None` lifts it.
+    pub fn set_triangle_batch_limit(&mut self, limit: Option<usize>) {
+        self.hard.set_triangle_batch_limit(limit);
     }
 
     /// The plane look-up texture the GPU builds for `light` (a light with

@@ -67,8 +67,9 @@ pub struct CasterFace {
     /// Inclusive texel rectangle (x0, y0, x1, y1).
     pub rect: [u32; 4],
     /// Texel-space edge functions a·x + b·y + c ≥ 0 inside, when the whole
-    /// triangle lies in front of the light (`None`: use the rectangle only).
-    pub edges: Option<TexelEdges>,
+    /// triangle lies in front of the light (`None`: use the rectangle only),
+    /// and the margin (texels along x and y) their tests allow.
+    pub edges: Option<(TexelEdges, [f32; 2])>,
 }
 
 /// What the setup decided for the counters.
@@ -84,6 +85,33 @@ pub struct CasterCounts {
 /// Margin in texels that keeps rectangles and edge tests conservative
 /// against f32 rounding between this pass and the sample projection.
 pub const TEXEL_MARGIN: f32 = 0.01;
+
+/// Rounding of projected coordinates that the texel margins absorb on top
+/// of [`TEXEL_MARGIN`], in ulps of the coordinates' magnitude.
+pub const ROUNDING_ULPS: f32 = 32.0;
+
+/// The magnitude of a face's projected coordinates, whose f32 rounding
+/// (ulps of it, times texels per unit) the texel margins absorb: the
+/// window's corners, plus 1 for a perspective face (x = X/Z carries the
+/// error of X and of Z) or the depth for an orthographic one. Without it a
+/// window zoomed onto a tight cluster of samples (a texel a few ulps wide)
+/// misses casters. As `face_scale` in caster_common.glsl.
+pub fn face_scale(window: &FaceWindow, point: bool, resolution: u32) -> f32 {
+    let x1 = window.x0 + resolution as f32 / window.sx;
+    let y1 = window.y0 + resolution as f32 / window.sy;
+    window
+        .x0
+        .abs()
+        .max(x1.abs())
+        .max(window.y0.abs().max(y1.abs()))
+        + if point { 1.0 } else { window.z_far.abs() }
+}
+
+/// The texel margin (x, y) for projected coordinates of magnitude `scale`.
+pub fn texel_margin(window: &FaceWindow, scale: f32) -> Vec2 {
+    Vec2::splat(TEXEL_MARGIN)
+        + Vec2::new(window.sx, window.sy) * (ROUNDING_ULPS * f32::EPSILON * scale)
+}
 
 /// Planes of triangle `v` (camera-relative), or why it cannot cast.
 pub fn caster_planes(light: &LightView, v: [Vec3; 3], closed: bool) -> Result<CasterPlanes, Skip> {
@@ -107,26 +135,30 @@ pub fn caster_planes(light: &LightView, v: [Vec3; 3], closed: bool) -> Result<Ca
     let support = [ns.x, ns.y, ns.z, -ns.dot(v[0])];
     let mut edges = [[0.0; 4]; 3];
     let mut side = [1.0; 3];
+    // Every edge plane's inside is the triangle's side of it, which one
+    // determinant gives for all three: (a − o)·n = −s_light for a point
+    // light, (c − a)·((b − a) × d) = s_light for a directional one. Taken
+    // per edge from its opposite vertex instead, a sliver's short side
+    // rounds the wrong way and its region becomes an unbounded wedge.
+    let inside_side = match light {
+        LightView::Point { .. } => -s_light.signum(),
+        LightView::Directional { .. } => s_light.signum(),
+    };
     for k in 0..3 {
         let a = v[k];
         let b = v[(k + 1) % 3];
-        let c = v[(k + 2) % 3];
         let swap = a.x > b.x || (a.x == b.x && (a.y > b.y || (a.y == b.y && a.z > b.z)));
         let (lo, hi) = if swap { (b, a) } else { (a, b) };
-        let (m, w, inside) = match light {
+        let (m, w) = match light {
             // Plane through the light and the edge, in light-relative coordinates.
-            LightView::Point { .. } => {
-                let m = (lo - o).cross(hi - lo);
-                (m, 0.0, m.dot(c - o))
-            }
+            LightView::Point { .. } => ((lo - o).cross(hi - lo), 0.0),
             LightView::Directional { direction } => {
                 let m = (hi - lo).cross(*direction);
-                let w = -m.dot(lo);
-                (m, w, m.dot(c) + w)
+                (m, -m.dot(lo))
             }
         };
         edges[k] = [m.x, m.y, m.z, w];
-        side[k] = if inside < 0.0 { -1.0 } else { 1.0 };
+        side[k] = if swap { -inside_side } else { inside_side };
     }
     Ok(CasterPlanes {
         support,
@@ -169,13 +201,14 @@ fn clip(poly: &[Vec3], plane: Vec3, ortho: bool) -> Vec<Vec3> {
 
 /// The texel rectangle and edge functions of triangle `v` in face `f`, or
 /// `None` when nothing of it can block a sample of that face.
+#[allow(clippy::type_complexity)]
 pub fn caster_face(
     light: &LightView,
     window: &FaceWindow,
     f: usize,
     v: [Vec3; 3],
     resolution: u32,
-) -> Option<([u32; 4], Option<TexelEdges>)> {
+) -> Option<([u32; 4], Option<(TexelEdges, [f32; 2])>)> {
     if !window.valid {
         return None;
     }
@@ -200,8 +233,11 @@ pub fn caster_face(
         Vec3::new(0.0, -1.0, y1),
     ];
     let near = point.then_some(Vec3::new(0.0, 0.0, 1.0));
+    let mut clipped = false;
     for plane in near.into_iter().chain(sides) {
+        let before = poly.len();
         poly = clip(&poly, plane, !point);
+        clipped |= poly.len() != before || poly.iter().zip(&tri).any(|(a, b)| a != b);
         if poly.is_empty() {
             return None;
         }
@@ -236,27 +272,47 @@ pub fn caster_face(
         }
     }
     let max = resolution as f32 - 1.0;
-    let rect = if touches_light || !lo.is_finite() || !hi.is_finite() {
+    let scale = face_scale(window, point, resolution);
+    // A clipped vertex carries the rounding of the whole edge it cuts: a
+    // few ulps of the vertices' magnitude, over its depth when projected.
+    let clip_scale = if clipped {
+        let t_max = tri
+            .iter()
+            .map(|p| p.abs().max_element())
+            .fold(0.0f32, f32::max);
+        if point {
+            2.0 * t_max * scale / z_min.max(1e-30)
+        } else {
+            2.0 * t_max
+        }
+    } else {
+        0.0
+    };
+    let m = texel_margin(window, scale + clip_scale);
+    let rect = if touches_light || !lo.is_finite() || !hi.is_finite() || !m.is_finite() {
         full
     } else {
         let cl = |x: f32| x.clamp(0.0, max) as u32;
         [
-            cl((lo.x - TEXEL_MARGIN).floor()),
-            cl((lo.y - TEXEL_MARGIN).floor()),
-            cl((hi.x + TEXEL_MARGIN).floor()),
-            cl((hi.y + TEXEL_MARGIN).floor()),
+            cl((lo.x - m.x).floor()),
+            cl((lo.y - m.y).floor()),
+            cl((hi.x + m.x).floor()),
+            cl((hi.y + m.y).floor()),
         ]
     };
     // Edge functions of the unclipped triangle's projection, when every
     // vertex is in front of the light (then the projection is a triangle
     // containing the clipped polygon's).
     let edges = (|| {
-        let t: Vec<Vec2> = tri
+        let pr: Vec<Vec2> = tri.iter().map(|p| project(*p)).collect::<Option<_>>()?;
+        let reach = pr
             .iter()
-            .map(|p| project(*p).map(to_texel))
-            .collect::<Option<_>>()?;
+            .map(|q| q.x.abs().max(q.y.abs()))
+            .fold(0.0f32, f32::max);
+        let t: Vec<Vec2> = pr.into_iter().map(to_texel).collect();
         let area = (t[1] - t[0]).perp_dot(t[2] - t[0]);
-        if !area.is_finite() || area.abs() < 1e-6 {
+        let em = texel_margin(window, scale + reach);
+        if !area.is_finite() || area.abs() < 1e-6 || !em.is_finite() {
             return None;
         }
         let s = area.signum();
@@ -269,18 +325,25 @@ pub fn caster_face(
             let eb = (b.x - a.x) * s;
             e[k] = [ea, eb, -(ea * a.x + eb * a.y)];
         }
-        Some(e)
+        Some((e, em.to_array()))
     })();
     Some((rect, edges))
 }
 
 /// Whether the texel-space square [x0, x1] × [y0, y1] may overlap a triangle
-/// with these edge functions (conservative).
-pub fn square_overlaps(edges: &[[f32; 3]; 3], x0: f32, y0: f32, x1: f32, y1: f32) -> bool {
+/// with these edge functions (conservative, with `margin` texels).
+pub fn square_overlaps(
+    edges: &[[f32; 3]; 3],
+    margin: [f32; 2],
+    x0: f32,
+    y0: f32,
+    x1: f32,
+    y1: f32,
+) -> bool {
     let cx = 0.5 * (x0 + x1);
     let cy = 0.5 * (y0 + y1);
-    let hx = 0.5 * (x1 - x0) + TEXEL_MARGIN;
-    let hy = 0.5 * (y1 - y0) + TEXEL_MARGIN;
+    let hx = 0.5 * (x1 - x0) + margin[0];
+    let hy = 0.5 * (y1 - y0) + margin[1];
     edges
         .iter()
         .all(|e| e[0] * cx + e[1] * cy + e[2] + e[0].abs() * hx + e[1].abs() * hy >= 0.0)

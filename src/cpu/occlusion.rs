@@ -29,7 +29,14 @@ pub struct OcclusionCounts {
 /// Whether texel (tx, ty) is touched by the pair's projection (conservative).
 pub fn texel_touched(cf: &CasterFace, tx: u32, ty: u32) -> bool {
     match &cf.edges {
-        Some(e) => square_overlaps(e, tx as f32, ty as f32, tx as f32 + 1.0, ty as f32 + 1.0),
+        Some((e, m)) => square_overlaps(
+            e,
+            *m,
+            tx as f32,
+            ty as f32,
+            tx as f32 + 1.0,
+            ty as f32 + 1.0,
+        ),
         None => true,
     }
 }

@@ -145,6 +145,12 @@ pub struct HardShadowPass {
     /// At most this many view samples per run; more are split into batches
     /// (None: as many as the device's binding limits allow).
     batch_limit: Option<usize>,
+    /// At most this many triangles per run (None: as many as the device's
+    /// binding limits allow for the caster pairs and planes).
+    triangle_batch_limit: Option<usize>,
+    /// The global id of triangle 0 of the current run (triangle batches):
+    /// view samples name their own triangle by global id.
+    triangle_base: u32,
 }
 
 /// A plane look-up texture on the device and what it was built from.
@@ -279,6 +285,8 @@ impl HardShadowPass {
             scan: ScanPass::new(ctx)?,
             plane_lut: None,
             batch_limit: None,
+            triangle_batch_limit: None,
+            triangle_base: 0,
         })
     }
 
@@ -369,6 +377,86 @@ impl HardShadowPass {
         self.batch_limit = limit;
     }
 
+    /// Limits the triangles per run (tests: forces the batched path that
+    /// scenes of millions of triangles take); `None` lifts the limit.
+    pub fn set_triangle_batch_limit(&mut self, limit: Option<usize>) {
+        self.triangle_batch_limit = limit;
+    }
+
+    /// [`HardShadowPass::run_on`] over the `nt` triangles in batches of at
+    /// most `batch`: each batch a complete run over every view sample, its
+    /// triangles named by global id; a light sample is visible when no
+    /// batch blocks it (the AND of the batches' results).
+    #[allow(clippy::too_many_arguments)]
+    fn run_triangle_batched(
+        &mut self,
+        ctx: &GpuContext,
+        samples_buf: &Buffer,
+        n: usize,
+        triangles_buf: &Buffer,
+        nt: usize,
+        batch: usize,
+        light: &LightView,
+        resolution: u32,
+        soft: Option<&SoftLight>,
+    ) -> Result<HardShadowOutput> {
+        let mut out: Option<HardShadowOutput> = None;
+        // Nested batches (a batch whose binned pairs still pass the limit)
+        // count from their parent's first triangle.
+        let base = self.triangle_base;
+        for start in (0..nt).step_by(batch) {
+            let len = batch.min(nt - start);
+            let part = ctx.create_buffer(BufferDesc::storage("triangle_batch", 48 * len as u64))?;
+            let mut rec = ctx.begin()?;
+            rec.copy_buffer(
+                triangles_buf.slice(48 * start as u64, 48 * len as u64)?,
+                &part,
+                0,
+            )?;
+            rec.barrier(Barrier::TransferToCompute);
+            ctx.submit_and_wait(rec)?;
+            self.triangle_base = base + start as u32;
+            let o = self.run_on(ctx, samples_buf, n, &part, len, light, resolution, soft);
+            self.triangle_base = base;
+            let o = o?;
+            out = Some(match out {
+                None => o,
+                Some(mut acc) => {
+                    for (a, b) in acc.lit.iter_mut().zip(&o.lit) {
+                        *a = match (*a, *b) {
+                            (Some(x), Some(y)) => Some(x && y),
+                            _ => None,
+                        };
+                    }
+                    for (a, b) in acc.counters.iter_mut().zip(o.counters) {
+                        *a = a.saturating_add(b);
+                    }
+                    acc.timings.extend(o.timings);
+                    acc.buffer_bytes = acc.buffer_bytes.max(o.buffer_bytes);
+                    if let (Some(a), Some(b), Some(sl)) = (acc.soft.as_mut(), o.soft, soft) {
+                        let words = a.mask_words;
+                        for (x, y) in a.visible.iter_mut().zip(&b.visible) {
+                            *x &= *y;
+                        }
+                        // Visibility = visible light samples / light samples
+                        // (soft_resolve.comp), of the combined masks.
+                        let count = sl.samples.len() as f32;
+                        for (i, v) in a.visibility.iter_mut().enumerate() {
+                            if v.is_some() {
+                                let mask = &a.visible[i * words..(i + 1) * words];
+                                let bits: u32 = mask.iter().map(|w| w.count_ones()).sum();
+                                *v = Some(bits as f32 / count);
+                            }
+                        }
+                        a.lut_built |= b.lut_built;
+                    }
+                    acc
+                }
+            });
+        }
+        out.ok_or_else(|| Error::InvalidInput("no triangles".into()))
+    }
+
     /// [`HardShadowPass::run_on`] over `n` view samples in batches of at
     /// most `batch`, each copied into its own buffer; the outputs are
     /// concatenated (counters summed, list lengths of the longest batch).
@@ -400,7 +488,11 @@ impl HardShadowPass {
             ctx.submit_and_wait(rec)?;
             let o = self.run_on(ctx, &part, len, triangles_buf, nt, light, resolution, soft)?;
             out = Some(match out {
-                None => o,
+                None => {
+                    let mut first = o;
+                    reserve_results(&mut first, n)?;
+                    first
+                }
                 Some(mut acc) => {
                     acc.lit.extend(o.lit);
                     for (a, b) in acc.counters.iter_mut().zip(o.counters) {
@@ -423,7 +515,36 @@ impl HardShadowPass {
         }
         out.ok_or_else(|| Error::InvalidInput("no view samples".into()))
     }
+}
 
+/// Reserves the host memory for the results of `n` view samples in `out`
+/// (the first batch's), so that a request too large for this machine is a
+/// clear error before the work, not an abort after it.
+fn reserve_results(out: &mut HardShadowOutput, n: usize) -> Result<()> {
+    let more = n.saturating_sub(out.lit.len());
+    let too_large = |what: &str, bytes: u128| {
+        Error::InvalidInput(format!(
+            "the results of {n} view samples ({what}, {:.1} GiB) do not fit in host memory; \
+             pass fewer view samples per call",
+            bytes as f64 / (1u64 << 30) as f64
+        ))
+    };
+    out.lit
+        .try_reserve_exact(more)
+        .map_err(|_| too_large("lit flags", 2 * n as u128))?;
+    if let Some(so) = out.soft.as_mut() {
+        so.visibility
+            .try_reserve_exact(more)
+            .map_err(|_| too_large("visibility", 8 * n as u128))?;
+        let words = so.mask_words * more;
+        so.visible
+            .try_reserve_exact(words)
+            .map_err(|_| too_large("light-sample masks", 4 * (so.mask_words * n) as u128))?;
+    }
+    Ok(())
+}
+
+impl HardShadowPass {
     /// Computes hard-shadow visibility of `view_samples` (camera-relative)
     /// from `light` with the scene's `triangles` over `resolution`² light
     /// texels per face (uploads both, then [`HardShadowPass::run_on`]).
@@ -555,6 +676,25 @@ impl HardShadowPass {
                 soft,
             );
         }
+        // Triangles whose caster pairs (64 B per face) or planes (80 B)
+        // would pass the binding limit run in batches too.
+        let per_triangle = (64 * faces as u64).max(80);
+        let triangle_batch = ((max_range / per_triangle) as usize)
+            .min(self.triangle_batch_limit.unwrap_or(usize::MAX))
+            .max(1);
+        if nt as usize > triangle_batch {
+            return self.run_triangle_batched(
+                ctx,
+                samples_buf,
+                n as usize,
+                triangles_buf,
+                nt as usize,
+                triangle_batch,
+                light,
+                resolution,
+                soft,
+            );
+        }
         let tiles_per_face = tiles_per_row * tiles_per_row;
         let tiles = faces * tiles_per_face;
         let pair_capacity = nt.saturating_mul(faces);
@@ -587,8 +727,13 @@ impl HardShadowPass {
                 None => [0; 4],
             },
             soft_light: match soft {
-                Some(sl) => [sl.bounds().1, sl.polygon_degree as f32, 0.0, 0.0],
-                None => [0.0; 4],
+                Some(sl) => [
+                    sl.bounds().1,
+                    sl.polygon_degree as f32,
+                    f32::from_bits(self.triangle_base),
+                    0.0,
+                ],
+                None => [0.0, 0.0, f32::from_bits(self.triangle_base), 0.0],
             },
         };
         let pc = bytemuck::bytes_of(&push);
@@ -806,6 +951,24 @@ impl HardShadowPass {
         let pairs_total = pairs_total[0];
         let units: Vec<u32> = ctx.read_buffer_staged(&unit_offsets, 4 * tiles as u64, 1)?;
         let units = units[0];
+        // The binned pairs (4 B per (pair, tile)) are known only now: past
+        // the binding limit, the triangles run again in batches small
+        // enough (regions of lights with extent cover many tiles).
+        let binned_bytes = 4 * pairs_total as u64;
+        if binned_bytes > max_range && nt > 1 {
+            let batch = (nt as u64 * max_range / binned_bytes / 2).max(1) as usize;
+            return self.run_triangle_batched(
+                ctx,
+                samples_buf,
+                n as usize,
+                triangles_buf,
+                nt as usize,
+                batch,
+                light,
+                resolution,
+                soft,
+            );
+        }
         let push2 = HardPush {
             more: [pair_capacity, tiles_per_row, tiles_per_face, units],
             ..push

@@ -179,7 +179,9 @@ pub struct HardPush {
     /// Soft shadows: 128-sample block, light samples (0: hard shadows),
     /// LUT resolution, `SOFT_*` flags.
     pub soft: [u32; 4],
-    /// Soft shadows: light bounding radius, influence polygon degree.
+    /// Soft shadows: light bounding radius, influence polygon degree; z
+    /// (all runs): the global id of this run's triangle 0 as `u32` bits
+    /// (triangle batches).
     pub soft_light: [f32; 4],
 }
 

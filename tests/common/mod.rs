@@ -1,6 +1,8 @@
 //! Helpers shared by the conformance tests (each test binary uses some).
 #![allow(dead_code)]
 
+pub mod bands;
+
 use alias_free_shadows::oracle::{Oracle, ViewSamples};
 use alias_free_shadows::scene::file::{default_view, place_on_ground, SceneDescription};
 
