@@ -27,12 +27,14 @@
 //! the measured frames is printed after the benchmark and written to
 //! `$CARGO_TARGET_DIR/bench-passes/<group>/<parameter>.json` (default
 //! `target/bench-passes/`), with one `<group>.csv` per group (one row per
-//! parameter, one column per pass) for plotting and ratios.
+//! parameter, one column per pass) for plotting and ratios. A filtered run
+//! rewrites a group's CSV with only the points that ran.
 //!
 //! lavapipe is slow (a 512² soft frame at 1024 samples takes seconds), so each
 //! benchmark takes 10 samples of one frame each after one warm-up frame;
 //! criterion warns that it cannot finish in the (short) target time, which
-//! is expected. The whole run takes about half an hour on 2 CPU cores.
+//! is expected. The whole run took 31 min on 2 CPU cores shared with other
+//! work (load 3-5); the exact-mode sweep is half of it.
 //!
 //! Run everything: `cargo bench --bench frame`. Run one sweep with a
 //! criterion filter (a regex on `group/parameter`):
