@@ -147,10 +147,17 @@ impl Config {
         }
     }
 
-    /// Runs that are slow and deterministic are timed once.
+    /// Runs that are slow (seconds each) are timed once: the oracle, 256
+    /// or more shadow maps, and our exact mode at 512 or more samples.
     fn repeats(&self, repeats: u32) -> u32 {
         match self {
             Config::Oracle { .. } => 1,
+            Config::PerSample { samples, .. } if *samples >= 256 => 1,
+            Config::Ours {
+                samples,
+                mode: SoftMode::Exact,
+                ..
+            } if *samples >= 512 => 1,
             _ => repeats,
         }
     }
@@ -367,7 +374,7 @@ pub fn run(engine: &mut Engine, options: &BenchOptions) -> Result<Vec<BenchRow>>
                 .map(|&i| vis[i].unwrap_or(0.0) as f64)
                 .collect();
             let (rmse, max_abs, over) = errors(&got, &want);
-            rows.push(BenchRow {
+            let row = BenchRow {
                 scene: short.clone(),
                 method: config.method().into(),
                 params: config.params(),
@@ -376,11 +383,26 @@ pub fn run(engine: &mut Engine, options: &BenchOptions) -> Result<Vec<BenchRow>>
                 rmse,
                 max_abs,
                 share_over_1_255: over,
-            });
+            };
             if let Some(pb) = &pb {
                 pb.inc(1);
+                // The bar is hidden when standard error is not a terminal
+                // (a log file): then one line per configuration.
+                if pb.is_hidden() {
+                    eprintln!(
+                        "[{:>4.0} s] {short}: {} {}: {:.1} ms, RMSE {:.2e}",
+                        pb.elapsed().as_secs_f64(),
+                        row.method,
+                        row.params,
+                        row.time_ms,
+                        row.rmse
+                    );
+                }
             }
+            rows.push(row);
         }
+        // What is done so far survives an interrupted run.
+        write_csv(&options.out.join("bench.csv"), &rows)?;
     }
     if let Some(pb) = pb {
         pb.finish_and_clear();
