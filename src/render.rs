@@ -392,13 +392,25 @@ fn user_gpu_inputs(
             })
         })
         .collect();
+    gpu_inputs(&with_ids, &user_gpu_triangles(scene, eye, samples))
+}
+
+/// The scene's triangles as [`Engine::hard_shadows`] and
+/// [`Engine::soft_shadows`] send them for user view samples: as
+/// [`gpu_triangles`], and a closed mesh that some sample may see from the
+/// inside is treated as open too.
+pub fn user_gpu_triangles(
+    scene: &Scene,
+    eye: DVec3,
+    samples: &[Option<ViewSample>],
+) -> Vec<([Vec3; 3], bool)> {
     let mut triangles = gpu_triangles(scene, eye);
     let opened = closed_meshes_seen_from_inside(scene, samples);
     let meshes = scene.triangles();
     for (t, m) in triangles.iter_mut().zip(&meshes) {
         t.1 &= !opened[m.mesh as usize];
     }
-    gpu_inputs(&with_ids, &triangles)
+    triangles
 }
 
 /// Per mesh: whether some user view sample may see a closed mesh from the

@@ -83,7 +83,7 @@ fn visible_samples_match_the_brute_force_twin() {
         let oracle = Oracle::new(&desc.scene.triangles(), eye);
         let view = engine_view_samples(&oracle, &desc);
         let light = sphere_light(&desc, samples);
-        let tris = render::gpu_triangles(&desc.scene, eye);
+        let tris = render::user_gpu_triangles(&desc.scene, eye, &view.samples);
         for mode in [SoftMode::Lut, SoftMode::Exact] {
             let settings = ShadowSettings {
                 mode,
