@@ -375,7 +375,7 @@ pub fn light_view(light: &Light, eye: DVec3) -> Option<LightView> {
 /// User view samples and the scene's triangles in GPU form, camera-relative
 /// (the shared first step of [`Engine::hard_shadows`] and
 /// [`Engine::soft_shadows`]).
-fn user_gpu_inputs(
+pub(crate) fn user_gpu_inputs(
     scene: &Scene,
     eye: DVec3,
     samples: &[Option<ViewSample>],

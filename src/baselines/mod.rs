@@ -29,7 +29,7 @@ pub use shadow_map::{FilterParams, LightFrame, ShadowMapPass};
 
 use crate::light::{Light, LightSamples};
 use crate::oracle::{Oracle, ViewSample, ViewSamples};
-use crate::render::{gpu_triangles, validate_shadow_inputs};
+use crate::render::validate_shadow_inputs;
 use crate::scene::Scene;
 use crate::vulkan::{vk, BufferDesc, GpuContext};
 use crate::{Error, Result};
@@ -258,20 +258,12 @@ impl Baselines {
         params: &FilterParams,
     ) -> Result<BaselineResult> {
         let t0 = Instant::now();
-        let with_ids: Vec<_> = samples
+        let (vs, ts) = crate::render::user_gpu_inputs(scene, eye, samples);
+        let receivers: Vec<Vec3> = vs
             .iter()
-            .map(|s| {
-                s.map(|s| {
-                    (
-                        (s.position - eye).as_vec3(),
-                        s.normal.as_vec3().normalize_or_zero(),
-                        s.triangle,
-                    )
-                })
-            })
+            .filter(|s| s.flags & crate::gpu::shared::VIEW_SAMPLE_VALID != 0)
+            .map(|s| Vec3::from_array(s.position))
             .collect();
-        let (vs, ts) = crate::gpu::hard_shadows::gpu_inputs(&with_ids, &gpu_triangles(scene, eye));
-        let receivers: Vec<Vec3> = with_ids.iter().flatten().map(|s| s.0).collect();
         let casters: Vec<Vec3> = ts
             .iter()
             .flat_map(|t| [t.v0, t.v1, t.v2])

@@ -406,15 +406,7 @@ impl HardShadowPass {
         let base = self.triangle_base;
         for start in (0..nt).step_by(batch) {
             let len = batch.min(nt - start);
-            let part = ctx.create_buffer(BufferDesc::storage("triangle_batch", 48 * len as u64))?;
-            let mut rec = ctx.begin()?;
-            rec.copy_buffer(
-                triangles_buf.slice(48 * start as u64, 48 * len as u64)?,
-                &part,
-                0,
-            )?;
-            rec.barrier(Barrier::TransferToCompute);
-            ctx.submit_and_wait(rec)?;
+            let part = copy_range(ctx, triangles_buf, "triangle_batch", 48, start, len)?;
             self.triangle_base = base + start as u32;
             let o = self.run_on(ctx, samples_buf, n, &part, len, light, resolution, soft);
             self.triangle_base = base;
@@ -476,16 +468,7 @@ impl HardShadowPass {
         let mut out: Option<HardShadowOutput> = None;
         for start in (0..n).step_by(batch) {
             let len = batch.min(n - start);
-            let part =
-                ctx.create_buffer(BufferDesc::storage("view_sample_batch", 32 * len as u64))?;
-            let mut rec = ctx.begin()?;
-            rec.copy_buffer(
-                samples_buf.slice(32 * start as u64, 32 * len as u64)?,
-                &part,
-                0,
-            )?;
-            rec.barrier(Barrier::TransferToCompute);
-            ctx.submit_and_wait(rec)?;
+            let part = copy_range(ctx, samples_buf, "view_sample_batch", 32, start, len)?;
             let o = self.run_on(ctx, &part, len, triangles_buf, nt, light, resolution, soft)?;
             out = Some(match out {
                 None => {
@@ -515,6 +498,28 @@ impl HardShadowPass {
         }
         out.ok_or_else(|| Error::InvalidInput("no view samples".into()))
     }
+}
+
+/// A new buffer holding elements `start..start + len` (of `stride` bytes)
+/// of `buf`: one batch's inputs.
+fn copy_range(
+    ctx: &GpuContext,
+    buf: &Buffer,
+    name: &str,
+    stride: u64,
+    start: usize,
+    len: usize,
+) -> Result<Buffer> {
+    let part = ctx.create_buffer(BufferDesc::storage(name, stride * len as u64))?;
+    let mut rec = ctx.begin()?;
+    rec.copy_buffer(
+        buf.slice(stride * start as u64, stride * len as u64)?,
+        &part,
+        0,
+    )?;
+    rec.barrier(Barrier::TransferToCompute);
+    ctx.submit_and_wait(rec)?;
+    Ok(part)
 }
 
 /// Reserves the host memory for the results of `n` view samples in `out`
