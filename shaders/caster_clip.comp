@@ -12,15 +12,15 @@ vec3 poly[MAX_POLY];
 vec3 tmp[MAX_POLY];
 int poly_n;
 
-// Sutherland-Hodgman: keep a*X + b*Y + c*Z + d >= 0 (Z = 1 for orthographic
-// clipping is folded into d by the caller).
-void clip(vec4 plane, bool ortho) {
+// Sutherland-Hodgman: keep a*X + b*Y + c*w >= -slack (w = Z, or 1 for
+// orthographic clipping).
+void clip(vec4 plane, bool ortho, float slack) {
     int n = 0;
     for (int i = 0; i < poly_n; i++) {
         vec3 p = poly[i];
         vec3 q = poly[(i + 1) % poly_n];
-        float dp = ortho ? plane.x * p.x + plane.y * p.y + plane.z : dot(plane.xyz, p);
-        float dq = ortho ? plane.x * q.x + plane.y * q.y + plane.z : dot(plane.xyz, q);
+        float dp = slack + (ortho ? plane.x * p.x + plane.y * p.y + plane.z : dot(plane.xyz, p));
+        float dq = slack + (ortho ? plane.x * q.x + plane.y * q.y + plane.z : dot(plane.xyz, q));
         if (dp >= 0.0 && n < MAX_POLY) {
             tmp[n++] = p;
         }
@@ -57,17 +57,15 @@ void main() {
         poly[1] = t1;
         poly[2] = t2;
         poly_n = 3;
+        // The sides widened by clip_slack; a point light's near plane exact
+        // (widened sides would reach behind the light).
+        float t_max = face_extent(t0, t1, t2);
+        vec4 sides[4] = vec4[4](vec4(1, 0, -x0, 0), vec4(-1, 0, x1y1.x, 0), vec4(0, 1, -y0, 0), vec4(0, -1, x1y1.y, 0));
         if (point) {
-            clip(vec4(0, 0, 1, 0), false);
-            if (poly_n > 0) clip(vec4(1, 0, -x0, 0), false);
-            if (poly_n > 0) clip(vec4(-1, 0, x1y1.x, 0), false);
-            if (poly_n > 0) clip(vec4(0, 1, -y0, 0), false);
-            if (poly_n > 0) clip(vec4(0, -1, x1y1.y, 0), false);
-        } else {
-            clip(vec4(1, 0, -x0, 0), true);
-            if (poly_n > 0) clip(vec4(-1, 0, x1y1.x, 0), true);
-            if (poly_n > 0) clip(vec4(0, 1, -y0, 0), true);
-            if (poly_n > 0) clip(vec4(0, -1, x1y1.y, 0), true);
+            clip(vec4(0, 0, 1, 0), false, 0.0);
+        }
+        for (int j = 0; j < 4 && poly_n > 0; j++) {
+            clip(sides[j], !point, clip_slack(sides[j].xyz, !point, t_max));
         }
         if (poly_n == 0) {
             continue;
@@ -81,8 +79,6 @@ void main() {
         }
         // A clipped vertex carries the rounding of the whole edge it cuts:
         // a few ulps of the vertices' magnitude, over its depth when projected.
-        float t_max = max(max(max(abs(t0.x), abs(t0.y)), max(abs(t0.z), abs(t1.x))),
-                          max(max(abs(t1.y), abs(t1.z)), max(max(abs(t2.x), abs(t2.y)), abs(t2.z))));
         float clip_scale = point ? 2.0 * t_max * face_scale(lf, true) / max(z_min, 1e-30) : 2.0 * t_max;
         any_face = emit_pair(i, f, lf, t0, t1, t2, z_min, lo, hi, touches_light, clip_scale) || any_face;
     }

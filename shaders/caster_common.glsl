@@ -54,6 +54,24 @@ vec2 texel_margin(vec4 window, float scale) {
     return vec2(TEXEL_MARGIN) + (ROUNDING_ULPS * 1.1920929e-7 * scale) * window.zw;
 }
 
+// How far clipping widens a window side `plane` (a, b, c: a*X + b*Y + c*w)
+// for a triangle whose face coordinates are at most t_max: the rounding of
+// evaluating the plane and of the vertices earlier clips made. A window
+// fitted to one sample is a pyramid thinner than that rounding; clipped
+// exactly, a triangle covering the sample could come out empty.
+// Twin: cpu::casters::clip_slack.
+float clip_slack(vec3 plane, bool ortho, float t_max) {
+    float terms = ortho ? t_max * (abs(plane.x) + abs(plane.y)) + abs(plane.z)
+                        : t_max * (abs(plane.x) + abs(plane.y) + abs(plane.z));
+    return ROUNDING_ULPS * 1.1920929e-7 * terms;
+}
+
+// The largest face coordinate of a triangle's vertices.
+float face_extent(vec3 t0, vec3 t1, vec3 t2) {
+    vec3 m = max(abs(t0), max(abs(t1), abs(t2)));
+    return max(m.x, max(m.y, m.z));
+}
+
 // Texel-space coordinates of a projected face point (cpu::light_view::texel_of, unfloored).
 vec2 to_texel(vec4 window, vec2 pr) {
     return vec2((pr.x - window.x) * window.z, (pr.y - window.y) * window.w);

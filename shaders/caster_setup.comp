@@ -195,15 +195,19 @@ void main() {
         // Quick accept / reject: a triangle wholly inside needs no clipping
         // (clipping would return it unchanged), one wholly outside a plane
         // is empty there.
+        // Rejection allows caster_clip's slack, so that what it would keep
+        // is never rejected here.
         bool all_in = true;
         bool rejected = false;
+        float t_max = face_extent(t0, t1, t2);
         for (int j = 0; j < 5; j++) {
             vec4 pl = wplanes[j];
             bool used = point || j < 4;
             float d0 = point ? dot(pl.xyz, t0) : pl.x * t0.x + pl.y * t0.y + pl.z;
             float d1 = point ? dot(pl.xyz, t1) : pl.x * t1.x + pl.y * t1.y + pl.z;
             float d2 = point ? dot(pl.xyz, t2) : pl.x * t2.x + pl.y * t2.y + pl.z;
-            rejected = rejected || (used && d0 < 0.0 && d1 < 0.0 && d2 < 0.0);
+            float slack = j < 4 ? clip_slack(pl.xyz, !point, t_max) : 0.0;
+            rejected = rejected || (used && d0 < -slack && d1 < -slack && d2 < -slack);
             all_in = all_in && (!used || (d0 >= 0.0 && d1 >= 0.0 && d2 >= 0.0));
         }
         if (rejected) {

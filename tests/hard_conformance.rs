@@ -485,6 +485,82 @@ fn samples_on_a_casters_plane_and_edges_conform() {
     engine.context().check_validation().unwrap();
 }
 
+/// Found by the randomized test (seed 10): one view sample makes a light
+/// face's window a pyramid thinner than the f32 rounding of clipping, and a
+/// caster crossing the light's plane, clipped to it exactly, came out empty
+/// and was culled although it covers the sample's shadow segment. The
+/// shrunk case, then a sweep of such casters around one far sample, each
+/// crossed by the segment well inside; all must shadow, as the oracle says.
+#[test]
+fn a_single_samples_window_keeps_casters_crossing_the_light_plane() {
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let eye = DVec3::new(-4.0, 0.0, 0.0);
+    let snap = |p: DVec3| eye + (p - eye).as_vec3().as_dvec3();
+    let mut cases = vec![(
+        [
+            DVec3::new(-0.21224819, 0.16721502, 0.27882263),
+            DVec3::new(0.14019762, -0.20868552, -0.0364092),
+            DVec3::new(-0.44218832, 0.16721502, -0.15540063),
+        ],
+        DVec3::new(-1.4102143, 0.013279911, 1.0501193),
+        DVec3::new(
+            -0.04024624824523926,
+            0.012011048384010792,
+            -0.04080606997013092,
+        ),
+    )];
+    for k in 0..48 {
+        let a = k as f64 * 0.77;
+        let light = DVec3::new(0.1 * a.sin(), 0.05 * (1.3 * a).cos(), -0.04);
+        let dir = DVec3::new(
+            -1.4 + 0.3 * a.cos(),
+            0.02 * (2.1 * a).sin(),
+            1.05 + 0.2 * a.sin(),
+        );
+        let sample = light + dir;
+        // The segment crosses the caster 2% to 12% of the way from the light.
+        let c = light + dir * (0.02 + 0.1 * (k % 6) as f64 / 5.0);
+        let u = dir.any_orthonormal_vector();
+        let w = dir.normalize().cross(u);
+        let r = 0.3 * dir.length();
+        // One vertex behind the light (the caster crosses the light's
+        // plane), and the crossing point `c` the caster's centroid.
+        let back = light - dir.normalize() * 0.2 + w * 0.05;
+        let b = c + u * r + w * (0.3 * r);
+        cases.push(([back, b, c * 3.0 - back - b], sample, light));
+    }
+    let mut shadowed = 0;
+    for (k, (v, p, l)) in cases.iter().enumerate() {
+        let positions = v.iter().map(|q| snap(*q)).collect();
+        let scene = Scene {
+            meshes: vec![Mesh::new("caster", positions, vec![[0, 1, 2]])],
+            ..Default::default()
+        };
+        let light = point(snap(*l));
+        let position = snap(*p);
+        let normal = (light.center().unwrap() - position).normalize();
+        let samples = vec![Some(ViewSample::user(position, normal))];
+        let oracle = Oracle::new(&scene.triangles(), eye);
+        let view = ViewSamples::from_user(1, 1, eye, samples.clone()).unwrap();
+        let want = oracle.visibility(&view, &light.light_samples(), None)[0] > 0.5;
+        assert!(!want, "case {k}: the segment must cross the caster");
+        for texels in [4, 64] {
+            let r = engine
+                .hard_shadows(&scene, eye, &samples, &light, texels)
+                .unwrap();
+            assert_eq!(
+                r.lit[0],
+                Some(want),
+                "case {k}, {texels}² texels: GPU {:?}, oracle lit {want}",
+                r.lit[0]
+            );
+            shadowed += 1;
+        }
+    }
+    eprintln!("casters crossing the light plane over a one-sample window: {shadowed} of {shadowed} runs shadowed, as the oracle says");
+    engine.context().check_validation().unwrap();
+}
+
 /// Issue 5, load: a scene of over a million triangles (a torus knot) at
 /// 48², under its point light, against the oracle with the bands.
 #[test]

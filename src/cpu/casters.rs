@@ -174,15 +174,16 @@ pub enum Skip {
     FrontFacingClosed,
 }
 
-/// Clips the polygon `poly` (face coordinates X, Y, z) to `a·X + b·Y + c·w ≥ 0`
-/// where w = z (perspective) or w = 1 (`ortho`), as `clip()` in caster_setup.comp.
-fn clip(poly: &[Vec3], plane: Vec3, ortho: bool) -> Vec<Vec3> {
+/// Clips the polygon `poly` (face coordinates X, Y, z) to `a·X + b·Y + c·w ≥ -slack`
+/// where w = z (perspective) or w = 1 (`ortho`), as `clip()` in caster_clip.comp.
+fn clip(poly: &[Vec3], plane: Vec3, ortho: bool, slack: f32) -> Vec<Vec3> {
     let d = |p: Vec3| {
-        if ortho {
-            plane.x * p.x + plane.y * p.y + plane.z
-        } else {
-            plane.dot(p)
-        }
+        slack
+            + if ortho {
+                plane.x * p.x + plane.y * p.y + plane.z
+            } else {
+                plane.dot(p)
+            }
     };
     let mut out = Vec::with_capacity(poly.len() + 1);
     for i in 0..poly.len() {
@@ -197,6 +198,22 @@ fn clip(poly: &[Vec3], plane: Vec3, ortho: bool) -> Vec<Vec3> {
         }
     }
     out
+}
+
+/// How far (in the plane's units) clipping widens a window side `plane`
+/// for a triangle whose face coordinates are at most `t_max`: the f32
+/// rounding of evaluating the plane (a few ulps of each term) and of the
+/// vertices that earlier clips made (a few ulps of `t_max` each). A window
+/// fitted to one sample is a pyramid thinner than that rounding; clipped
+/// exactly, a triangle that covers the sample could come out empty.
+/// As `clip_slack` in caster_common.glsl.
+pub fn clip_slack(plane: Vec3, ortho: bool, t_max: f32) -> f32 {
+    let terms = if ortho {
+        t_max * (plane.x.abs() + plane.y.abs()) + plane.z.abs()
+    } else {
+        t_max * (plane.x.abs() + plane.y.abs() + plane.z.abs())
+    };
+    ROUNDING_ULPS * f32::EPSILON * terms
 }
 
 /// The texel rectangle and edge functions of triangle `v` in face `f`, or
@@ -233,10 +250,22 @@ pub fn caster_face(
         Vec3::new(0.0, -1.0, y1),
     ];
     let near = point.then_some(Vec3::new(0.0, 0.0, 1.0));
+    let t_max = tri
+        .iter()
+        .map(|p| p.abs().max_element())
+        .fold(0.0f32, f32::max);
     let mut clipped = false;
-    for plane in near.into_iter().chain(sides) {
+    for (k, plane) in near.into_iter().chain(sides).enumerate() {
         let before = poly.len();
-        poly = clip(&poly, plane, !point);
+        // The window's sides are widened by the rounding of the clip (see
+        // `clip_slack`); the near plane (a point light's) is kept exact,
+        // as the widened sides would reach behind the light.
+        let slack = if point && k == 0 {
+            0.0
+        } else {
+            clip_slack(plane, !point, t_max)
+        };
+        poly = clip(&poly, plane, !point, slack);
         clipped |= poly.len() != before || poly.iter().zip(&tri).any(|(a, b)| a != b);
         if poly.is_empty() {
             return None;
@@ -276,10 +305,6 @@ pub fn caster_face(
     // A clipped vertex carries the rounding of the whole edge it cuts: a
     // few ulps of the vertices' magnitude, over its depth when projected.
     let clip_scale = if clipped {
-        let t_max = tri
-            .iter()
-            .map(|p| p.abs().max_element())
-            .fold(0.0f32, f32::max);
         if point {
             2.0 * t_max * scale / z_min.max(1e-30)
         } else {
