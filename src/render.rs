@@ -417,9 +417,10 @@ pub fn user_gpu_triangles(
 /// inside, so that the passes must treat it as open (skipping the faces
 /// that face the light, paper §3.3, is right only for samples outside the
 /// solid). That is a sample on one of its triangles whose normal opposes
-/// the triangle's winding, or any sample not on its triangles that lies in
-/// (or on) its bounding box. Treating a closed mesh as open is always
-/// correct, only slower.
+/// the triangle's winding, or any sample not on its triangles that lies
+/// inside it (tested exactly for the samples in its bounding box, up to a
+/// budget of triangle tests; past it, any sample in the box). Treating a
+/// closed mesh as open is always correct, only slower.
 fn closed_meshes_seen_from_inside(scene: &Scene, samples: &[Option<ViewSample>]) -> Vec<bool> {
     let mut opened = vec![false; scene.meshes.len()];
     let boxes: Vec<Option<(DVec3, DVec3)>> = scene
@@ -444,6 +445,9 @@ fn closed_meshes_seen_from_inside(scene: &Scene, samples: &[Option<ViewSample>])
         return opened;
     }
     let triangles = scene.triangles();
+    // Per closed mesh, samples in its box not on its own surface: tested
+    // for containment exactly where that is cheap, else the mesh opens.
+    let mut in_box: Vec<Vec<DVec3>> = vec![Vec::new(); scene.meshes.len()];
     for s in samples.iter().flatten() {
         // The closed mesh the sample lies on, seen from the outside.
         let mut own = None;
@@ -458,10 +462,22 @@ fn closed_meshes_seen_from_inside(scene: &Scene, samples: &[Option<ViewSample>])
         for (m, b) in boxes.iter().enumerate() {
             if let Some((lo, hi)) = b {
                 if own != Some(m) && s.position.cmpge(*lo).all() && s.position.cmple(*hi).all() {
-                    opened[m] = true;
+                    in_box[m].push(s.position);
                 }
             }
         }
+    }
+    /// Triangle tests allowed per mesh for exact containment.
+    const CONTAINMENT_BUDGET: usize = 20_000_000;
+    for (m, points) in in_box.iter().enumerate() {
+        if opened[m] || points.is_empty() {
+            continue;
+        }
+        let mesh = &scene.meshes[m];
+        // A sample on or just outside the surface (f32 rounding) may count
+        // as inside: that only opens the mesh, which is always correct.
+        opened[m] = points.len().saturating_mul(mesh.indices.len()) > CONTAINMENT_BUDGET
+            || points.iter().any(|p| mesh.contains(*p));
     }
     opened
 }

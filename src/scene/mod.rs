@@ -75,6 +75,21 @@ pub struct Mesh {
 }
 
 impl Mesh {
+    /// Whether `p` lies inside this mesh (closed meshes only; an open one
+    /// contains nothing). Ray parity in f64 along a fixed oblique
+    /// direction, which a closed surface crosses an odd number of times
+    /// from an inside point. O(triangles).
+    pub fn contains(&self, p: DVec3) -> bool {
+        let dir =
+            DVec3::new(0.577_350_3, 0.577_350_2, 0.577_350_4) + DVec3::new(1.3e-3, -0.7e-3, 0.2e-3);
+        self.closed
+            && (0..self.indices.len())
+                .filter(|&t| ray_crosses(p, dir, self.triangle(t)))
+                .count()
+                % 2
+                == 1
+    }
+
     /// Builds a mesh and computes [`Mesh::closed`].
     pub fn new(name: impl Into<String>, positions: Vec<DVec3>, indices: Vec<[u32; 3]>) -> Self {
         let closed = is_closed(&indices);
@@ -314,19 +329,7 @@ impl Scene {
     /// direction, which a closed mesh's surface crosses an odd number of
     /// times from an inside point.
     pub fn closed_meshes_containing(&self, p: DVec3) -> Vec<bool> {
-        let dir =
-            DVec3::new(0.577_350_3, 0.577_350_2, 0.577_350_4) + DVec3::new(1.3e-3, -0.7e-3, 0.2e-3);
-        self.meshes
-            .iter()
-            .map(|m| {
-                m.closed
-                    && (0..m.indices.len())
-                        .filter(|&t| ray_crosses(p, dir, m.triangle(t)))
-                        .count()
-                        % 2
-                        == 1
-            })
-            .collect()
+        self.meshes.iter().map(|m| m.contains(p)).collect()
     }
 
     /// Adds a square ground plane of two triangles at height `y`, normal +y.
