@@ -2,8 +2,9 @@
 //! the [baselines](crate::baselines), on several scenes, against a
 //! converged oracle image (the CPU oracle with many Sobol light samples).
 //!
-//! Every scene gets a sphere light (radius 5% of the scene's diagonal, at
-//! the scene's light) and square images of [`BenchOptions::size`]. Each
+//! Every scene gets a sphere light ([`bench_light`]: the scene's own, or
+//! one at its light a tenth as wide as its distance from the scene) and
+//! square images of [`BenchOptions::size`]. Each
 //! method runs over its parameters; a configuration's time is the median
 //! wall time of [`BenchOptions::repeats`] runs (the pipelines are warm: the
 //! engine and the baselines are made once), its error that of its first run
@@ -21,6 +22,7 @@ use crate::oracle::{Oracle, ViewSamples};
 use crate::render::Engine;
 use crate::scene::file::{self, SceneDescription, ShadowSettings, SoftMode};
 use crate::{Error, Result};
+use glam::DVec3;
 
 /// What `afs bench` runs.
 #[derive(Clone, Debug)]
@@ -100,6 +102,12 @@ enum Config {
     Oracle {
         samples: u32,
     },
+    /// Our hard shadows for a point light at the light's centre.
+    OursHard,
+    /// One shadow map (one tap) for that point light.
+    MapHard {
+        resolution: u32,
+    },
 }
 
 impl Config {
@@ -114,7 +122,15 @@ impl Config {
             Config::Pcss { .. } => "pcss",
             Config::PerSample { .. } => "per-sample-maps",
             Config::Oracle { .. } => "oracle",
+            Config::OursHard => "ours-hard",
+            Config::MapHard { .. } => "shadow-map-hard",
         }
+    }
+
+    /// Hard-shadow configurations: a point light at the light's centre,
+    /// measured against the oracle's hard shadows.
+    fn hard(&self) -> bool {
+        matches!(self, Config::OursHard | Config::MapHard { .. })
     }
 
     fn params(&self) -> String {
@@ -135,6 +151,8 @@ impl Config {
                 resolution,
             } => format!("samples={samples} map={resolution}"),
             Config::Oracle { samples } => format!("samples={samples}"),
+            Config::OursHard => String::new(),
+            Config::MapHard { resolution } => format!("map={resolution}"),
         }
     }
 
@@ -186,6 +204,8 @@ fn sweep(quick: bool) -> Vec<Config> {
             resolution: 128,
         });
         c.push(Config::Oracle { samples: 8 });
+        c.push(Config::OursHard);
+        c.push(Config::MapHard { resolution: 256 });
         return c;
     }
     for samples in [32, 128, 512, 1024] {
@@ -217,18 +237,22 @@ fn sweep(quick: bool) -> Vec<Config> {
             c.push(Config::Pcss { resolution, kernel });
         }
     }
-    for samples in [16, 64, 256, 1024] {
+    for samples in [16, 64, 128, 256, 1024] {
         c.push(Config::PerSample {
             samples,
             resolution: 1024,
         });
     }
     c.push(Config::PerSample {
-        samples: 256,
+        samples: 128,
         resolution: 2048,
     });
-    for samples in [16, 64, 256] {
+    for samples in [16, 128] {
         c.push(Config::Oracle { samples });
+    }
+    c.push(Config::OursHard);
+    for resolution in [2048, 8192] {
+        c.push(Config::MapHard { resolution });
     }
     c
 }
@@ -248,22 +272,36 @@ fn load_scene(spec: &str, size: u32) -> Result<SceneDescription> {
     Ok(desc)
 }
 
-/// A sphere light of radius 5% of the scene's diagonal at the scene's
-/// first light (above the scene when it has no centre).
+/// The bench's light with extent: the scene's first light when it is a
+/// sphere (the demo's), else a sphere at the scene's first light (above the
+/// scene when it has no centre) whose radius is a tenth of its distance
+/// from the centre of the scene's bounds (an angular radius of about 5.7°
+/// seen from there; a share of the bounds' diagonal would follow the ground
+/// plane's size instead of the objects').
 pub fn bench_light(desc: &SceneDescription, samples: u32) -> Result<Light> {
     let (lo, hi) = desc
         .scene
         .bounds()
         .ok_or_else(|| Error::InvalidInput(format!("{}: the scene is empty", desc.name)))?;
     let first = desc.lights.first();
-    let position = first
-        .and_then(|l| l.center())
-        .unwrap_or(hi + (hi - lo) * 0.5);
+    let shape = match first.map(|l| &l.shape) {
+        Some(sphere @ LightShape::Sphere { .. }) => sphere.clone(),
+        _ => {
+            let position = first
+                .and_then(|l| l.center())
+                .unwrap_or(hi + (hi - lo) * 0.5);
+            let radius = 0.1 * position.distance((lo + hi) * 0.5);
+            if !(radius > 0.0 && radius.is_finite()) {
+                return Err(Error::InvalidInput(format!(
+                    "{}: the light is at the centre of the scene; the bench needs it apart",
+                    desc.name
+                )));
+            }
+            LightShape::Sphere { position, radius }
+        }
+    };
     Ok(Light {
-        shape: LightShape::Sphere {
-            position,
-            radius: 0.05 * (hi - lo).length(),
-        },
+        shape,
         samples,
         distribution: first.map_or(Distribution::Poisson, |l| l.distribution),
         seed: first.map_or(7, |l| l.seed),
@@ -351,6 +389,9 @@ pub fn run(engine: &mut Engine, options: &BenchOptions) -> Result<Vec<BenchRow>>
         };
         let reference = oracle.visibility(&view, &reference_light.light_samples(), None);
         let want: Vec<f64> = pixels.iter().map(|&i| reference[i] as f64).collect();
+        let hard_light = hard_light(desc)?;
+        let hard_reference = oracle.visibility(&view, &hard_light.light_samples(), None);
+        let want_hard: Vec<f64> = pixels.iter().map(|&i| hard_reference[i] as f64).collect();
         if let Some(pb) = &pb {
             pb.inc(1);
         }
@@ -359,7 +400,11 @@ pub fn run(engine: &mut Engine, options: &BenchOptions) -> Result<Vec<BenchRow>>
                 pb.set_message(format!("{short}: {} {}", config.method(), config.params()));
             }
             let samples = config.light_samples().max(1);
-            let light = bench_light(desc, samples)?;
+            let light = if config.hard() {
+                hard_light.clone()
+            } else {
+                bench_light(desc, samples)?
+            };
             let mut times = Vec::new();
             let mut first = None;
             for _ in 0..config.repeats(options.repeats) {
@@ -373,7 +418,8 @@ pub fn run(engine: &mut Engine, options: &BenchOptions) -> Result<Vec<BenchRow>>
                 .iter()
                 .map(|&i| vis[i].unwrap_or(0.0) as f64)
                 .collect();
-            let (rmse, max_abs, over) = errors(&got, &want);
+            let (rmse, max_abs, over) =
+                errors(&got, if config.hard() { &want_hard } else { &want });
             let row = BenchRow {
                 scene: short.clone(),
                 method: config.method().into(),
@@ -410,7 +456,87 @@ pub fn run(engine: &mut Engine, options: &BenchOptions) -> Result<Vec<BenchRow>>
     engine.context().check_validation()?;
     write_csv(&options.out.join("bench.csv"), &rows)?;
     plot(&options.out.join("bench.png"), &rows)?;
+    let table = ratios(&rows);
+    let path = options.out.join("bench-ratios.md");
+    std::fs::write(&path, &table).map_err(|e| Error::io(&path, e))?;
     Ok(rows)
+}
+
+/// The key ratios (issue 6, the paper's §5) per scene, as a Markdown
+/// table: run time of the first configuration over the second's, with
+/// both RMSEs. A ratio whose rows are missing (a custom sweep) is left out.
+pub fn ratios(rows: &[BenchRow]) -> String {
+    const PAIRS: [(&str, &str, &str, &str, &str); 6] = [
+        (
+            "ours 128 (LUT) / one shadow map per sample, 128 × 1024²",
+            "ours-lut",
+            "samples=128 lut=128",
+            "per-sample-maps",
+            "samples=128 map=1024",
+        ),
+        (
+            "ours 128 (exact) / one shadow map per sample, 128 × 1024²",
+            "ours-exact",
+            "samples=128",
+            "per-sample-maps",
+            "samples=128 map=1024",
+        ),
+        (
+            "ours 128 (LUT) / CPU oracle, 128 samples",
+            "ours-lut",
+            "samples=128 lut=128",
+            "oracle",
+            "samples=128",
+        ),
+        (
+            "ours 1024 / ours 128 (LUT)",
+            "ours-lut",
+            "samples=1024 lut=128",
+            "ours-lut",
+            "samples=128 lut=128",
+        ),
+        (
+            "ours 1024 / ours 128 (exact)",
+            "ours-exact",
+            "samples=1024",
+            "ours-exact",
+            "samples=128",
+        ),
+        (
+            "ours hard / one 8192² shadow map",
+            "ours-hard",
+            "",
+            "shadow-map-hard",
+            "map=8192",
+        ),
+    ];
+    let mut scenes: Vec<&str> = Vec::new();
+    for r in rows {
+        if !scenes.contains(&r.scene.as_str()) {
+            scenes.push(&r.scene);
+        }
+    }
+    let find = |scene: &str, method: &str, params: &str| {
+        rows.iter()
+            .find(|r| r.scene == scene && r.method == method && r.params == params)
+    };
+    let mut s =
+        String::from("| scene | ratio | time ratio | times (ms) | RMSE |\n|---|---|---|---|---|\n");
+    for scene in scenes {
+        for (name, m1, p1, m2, p2) in PAIRS {
+            if let (Some(a), Some(b)) = (find(scene, m1, p1), find(scene, m2, p2)) {
+                s.push_str(&format!(
+                    "| {scene} | {name} | {:.2} | {:.1} / {:.1} | {:.2e} / {:.2e} |\n",
+                    a.time_ms / b.time_ms,
+                    a.time_ms,
+                    b.time_ms,
+                    a.rmse,
+                    b.rmse
+                ));
+            }
+        }
+    }
+    s
 }
 
 fn run_config(
@@ -471,6 +597,40 @@ fn run_config(
                 .visibility
         }
         Config::Oracle { .. } => baselines::oracle(scene, eye, samples, light)?.visibility,
+        Config::OursHard => engine
+            .hard_shadows(
+                scene,
+                eye,
+                samples,
+                light,
+                ShadowSettings::default().light_texels,
+            )?
+            .lit
+            .iter()
+            .map(|l| Some(if *l == Some(true) { 1.0 } else { 0.0 }))
+            .collect(),
+        Config::MapHard { resolution } => {
+            let s = PcfSettings {
+                resolution,
+                kernel: 0,
+                bias,
+            };
+            baselines
+                .pcf(ctx, scene, eye, samples, light, &s)?
+                .visibility
+        }
+    })
+}
+
+/// The point light of the hard-shadow rows: at the bench light's centre.
+fn hard_light(desc: &SceneDescription) -> Result<Light> {
+    let soft = bench_light(desc, 1)?;
+    Ok(Light {
+        shape: LightShape::Point {
+            position: soft.center().unwrap_or(DVec3::ZERO),
+        },
+        samples: 1,
+        ..soft
     })
 }
 
@@ -544,8 +704,8 @@ const METHODS: [&str; 6] = [
     "oracle",
 ];
 
-/// Log time against log RMSE, one curve per method (points in time order),
-/// one panel per scene.
+/// Log time against log RMSE of the soft-shadow methods, one curve per
+/// method (its Pareto front; every configuration a dot), one panel per scene.
 fn plot(path: &Path, rows: &[BenchRow]) -> Result<()> {
     use plotters::prelude::*;
     let err = |e: &dyn std::fmt::Display| Error::InvalidInput(format!("plot: {e}"));
@@ -568,7 +728,10 @@ fn plot(path: &Path, rows: &[BenchRow]) -> Result<()> {
         let panels = root.split_evenly((rows_n, cols));
         let floor = 1e-5;
         for (scene, area) in scenes.iter().zip(panels.iter()) {
-            let mine: Vec<&BenchRow> = rows.iter().filter(|r| r.scene == *scene).collect();
+            let mine: Vec<&BenchRow> = rows
+                .iter()
+                .filter(|r| r.scene == *scene && METHODS.contains(&r.method.as_str()))
+                .collect();
             let (mut t0, mut t1, mut e0, mut e1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
             for r in &mine {
                 let t = r.time_ms.max(1e-3);
@@ -608,10 +771,18 @@ fn plot(path: &Path, rows: &[BenchRow]) -> Result<()> {
                 if pts.is_empty() {
                     continue;
                 }
-                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+                // The curve joins the method's best trade-offs (no faster
+                // configuration is as accurate); every configuration is a dot.
+                let mut front: Vec<(f64, f64)> = Vec::new();
+                for p in &pts {
+                    if front.last().is_none_or(|f| p.1 < f.1) {
+                        front.push(*p);
+                    }
+                }
                 let color = Palette99::pick(k).to_rgba();
                 let series = chart
-                    .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                    .draw_series(LineSeries::new(front, color.stroke_width(2)))
                     .map_err(|e| err(&e))?;
                 if text {
                     series.label(*method).legend(move |(x, y)| {
@@ -627,7 +798,7 @@ fn plot(path: &Path, rows: &[BenchRow]) -> Result<()> {
                     .configure_series_labels()
                     .background_style(WHITE.mix(0.8))
                     .border_style(BLACK)
-                    .position(SeriesLabelPosition::UpperRight)
+                    .position(SeriesLabelPosition::LowerLeft)
                     .draw()
                     .map_err(|e| err(&e))?;
             }

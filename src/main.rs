@@ -51,8 +51,9 @@ enum Command {
     Info,
     /// Run time against error: our soft shadows and the baselines (shadow
     /// map + PCF, PCSS, one shadow map per light sample, the CPU oracle)
-    /// over their parameters, against a converged oracle image; writes
-    /// bench.csv and bench.png.
+    /// over their parameters, against a converged oracle image, plus our
+    /// hard shadows against one shadow map; writes bench.csv, bench.png
+    /// and bench-ratios.md (the key ratios, also printed).
     Bench(BenchArgs),
     /// Write a built-in scene as a binary glTF (.glb) file.
     Export {
@@ -66,7 +67,7 @@ enum Command {
 
 #[derive(Args, Debug)]
 struct BenchArgs {
-    /// Folder for bench.csv and bench.png.
+    /// Folder for bench.csv, bench.png and bench-ratios.md.
     #[arg(long, default_value = "docs")]
     out: PathBuf,
     /// Image width and height (default 256, 32 with --quick).
@@ -334,12 +335,14 @@ fn run(cli: Cli) -> Result<()> {
             };
             let t0 = std::time::Instant::now();
             let rows = alias_free_shadows::bench::run(&mut engine, &options)?;
+            print!("{}", alias_free_shadows::bench::ratios(&rows));
             println!(
-                "{} configurations in {:.1} s; wrote {} and {}",
+                "{} configurations in {:.1} s; wrote {}, {} and {}",
                 rows.len(),
                 t0.elapsed().as_secs_f64(),
                 options.out.join("bench.csv").display(),
-                options.out.join("bench.png").display()
+                options.out.join("bench.png").display(),
+                options.out.join("bench-ratios.md").display()
             );
         }
         Command::Info => {

@@ -215,11 +215,21 @@ fn bench_quick_writes_csv_and_plot() {
     let csv = std::fs::read_to_string(dir.path().join("bench.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     assert!(lines[0].starts_with("scene,method,params"));
-    for m in ["ours-lut", "pcf", "pcss", "per-sample-maps", "oracle"] {
+    for m in [
+        "ours-lut",
+        "pcf",
+        "pcss",
+        "per-sample-maps",
+        "oracle",
+        "ours-hard",
+        "shadow-map-hard",
+    ] {
         assert!(
             lines.iter().any(|l| l.split(',').nth(1) == Some(m)),
             "{m} missing:\n{csv}"
         );
     }
     assert!(dir.path().join("bench.png").is_file());
+    let ratios = std::fs::read_to_string(dir.path().join("bench-ratios.md")).unwrap();
+    assert!(ratios.starts_with("| scene | ratio |"), "{ratios}");
 }
