@@ -33,8 +33,8 @@
 //! lavapipe is slow (a 512² soft frame at 1024 samples takes seconds), so each
 //! benchmark takes 10 samples of one frame each after one warm-up frame;
 //! criterion warns that it cannot finish in the (short) target time, which
-//! is expected. The whole run took 31 min on 2 CPU cores shared with other
-//! work (load 3-5); the exact-mode sweep is half of it.
+//! is expected. The whole run took 18 min 16 s (build included) on 2 idle
+//! CPU cores with lavapipe; the exact-mode sweep is about half of it.
 //!
 //! Run everything: `cargo bench --bench frame`. Run one sweep with a
 //! criterion filter (a regex on `group/parameter`):
