@@ -310,6 +310,17 @@ pub fn bench_light(desc: &SceneDescription, samples: u32) -> Result<Light> {
     })
 }
 
+/// The rows' scenes, each once, in order of appearance.
+fn scene_names(rows: &[BenchRow]) -> Vec<&str> {
+    let mut scenes: Vec<&str> = Vec::new();
+    for r in rows {
+        if !scenes.contains(&r.scene.as_str()) {
+            scenes.push(&r.scene);
+        }
+    }
+    scenes
+}
+
 /// RMSE, maximum absolute error and share of values off by more than 1/255.
 pub fn errors(got: &[f64], want: &[f64]) -> (f64, f64, f64) {
     let n = got.len().max(1) as f64;
@@ -510,12 +521,7 @@ pub fn ratios(rows: &[BenchRow]) -> String {
             "map=8192",
         ),
     ];
-    let mut scenes: Vec<&str> = Vec::new();
-    for r in rows {
-        if !scenes.contains(&r.scene.as_str()) {
-            scenes.push(&r.scene);
-        }
-    }
+    let scenes = scene_names(rows);
     let find = |scene: &str, method: &str, params: &str| {
         rows.iter()
             .find(|r| r.scene == scene && r.method == method && r.params == params)
@@ -710,12 +716,7 @@ fn plot(path: &Path, rows: &[BenchRow]) -> Result<()> {
     use plotters::prelude::*;
     let err = |e: &dyn std::fmt::Display| Error::InvalidInput(format!("plot: {e}"));
     let text = register_font();
-    let mut scenes: Vec<&str> = Vec::new();
-    for r in rows {
-        if !scenes.contains(&r.scene.as_str()) {
-            scenes.push(&r.scene);
-        }
-    }
+    let scenes = scene_names(rows);
     let cols = scenes.len().clamp(1, 2);
     let rows_n = scenes.len().div_ceil(cols).max(1);
     let size = (640 * cols as u32, 480 * rows_n as u32);

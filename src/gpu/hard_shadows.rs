@@ -665,9 +665,7 @@ impl HardShadowPass {
         let max_range = ctx.info().limits.max_storage_buffer_range as u64;
         let words = soft.map_or(0, |sl| sl.samples.len().div_ceil(128) * 4) as u64;
         let per_sample = 32.max(4 * words);
-        let batch = ((max_range / per_sample) as usize)
-            .min(self.batch_limit.unwrap_or(usize::MAX))
-            .max(1);
+        let batch = batch_len(max_range, per_sample, self.batch_limit);
         if n as usize > batch {
             return self.run_batched(
                 ctx,
@@ -684,9 +682,7 @@ impl HardShadowPass {
         // Triangles whose caster pairs (64 B per face) or planes (80 B)
         // would pass the binding limit run in batches too.
         let per_triangle = (64 * faces as u64).max(80);
-        let triangle_batch = ((max_range / per_triangle) as usize)
-            .min(self.triangle_batch_limit.unwrap_or(usize::MAX))
-            .max(1);
+        let triangle_batch = batch_len(max_range, per_triangle, self.triangle_batch_limit);
         if nt as usize > triangle_batch {
             return self.run_triangle_batched(
                 ctx,
@@ -1231,4 +1227,12 @@ pub fn gpu_inputs(
         .map(|(v, closed)| GpuTriangle::new(*v, if *closed { TRIANGLE_CLOSED } else { 0 }, 0))
         .collect();
     (vs, ts)
+}
+
+/// Items per batch: as many as fit in `max_range` bytes at `per_item`
+/// bytes each, at most `limit` (tests force small batches), at least one.
+fn batch_len(max_range: u64, per_item: u64, limit: Option<usize>) -> usize {
+    ((max_range / per_item) as usize)
+        .min(limit.unwrap_or(usize::MAX))
+        .max(1)
 }

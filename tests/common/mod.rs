@@ -37,13 +37,7 @@ pub fn shared_asset_scenes() -> Vec<SceneDescription> {
 /// The engine's view samples as the oracle sees them: camera-relative f32
 /// positions and normals converted back, exactly.
 pub fn engine_view_samples(oracle: &Oracle, desc: &SceneDescription) -> ViewSamples {
-    let eye = desc.camera.eye;
-    let mut view = oracle.primary_view_samples(&desc.camera);
-    for s in view.samples.iter_mut().flatten() {
-        s.position = eye + (s.position - eye).as_vec3().as_dvec3();
-        s.normal = s.normal.as_vec3().as_dvec3();
-    }
-    view
+    alias_free_shadows::bench::f32_view_samples(oracle, desc)
 }
 
 /// `desc` with every position scaled by `scale` about the origin, then
