@@ -132,6 +132,7 @@ impl Buffer {
                     desc.name
                 ))
             })?;
+        device.count_allocation(false, size);
         let (memory, offset) = unsafe { (allocation.memory(), allocation.offset()) };
         buffer.allocation = Some(allocation);
         unsafe { device.raw().bind_buffer_memory(raw, memory, offset) }.map_err(|e| {
@@ -463,13 +464,12 @@ impl GpuContext {
         if bytes.is_empty() {
             return Ok(());
         }
-        let staging = self.create_buffer(BufferDesc::upload(
-            format!("{} (upload)", buffer.name()),
-            bytes.len() as u64,
-        ))?;
+        let size = bytes.len() as u64;
+        let mut staging = self.staging(Staging::Upload, size)?;
+        let staging = staging.get(self, size)?;
         staging.write_mapped(0, bytes)?;
         let mut rec = self.begin()?;
-        rec.copy_buffer(staging.whole(), buffer, offset)?;
+        rec.copy_buffer(staging.slice(0, size)?, buffer, offset)?;
         rec.barrier(Barrier::TransferToCompute);
         self.submit_and_wait(rec)
     }
@@ -502,15 +502,138 @@ impl GpuContext {
         if bytes == 0 {
             return Ok(Vec::new());
         }
-        let readback = self.create_buffer(BufferDesc::readback(
-            format!("{} (read-back)", buffer.name()),
-            bytes,
-        ))?;
+        let mut staging = self.staging(Staging::Readback, bytes)?;
+        let readback = staging.get(self, bytes)?;
         let mut rec = self.begin()?;
         rec.barrier(Barrier::ComputeToTransfer);
-        rec.copy_buffer(buffer.slice(offset, bytes)?, &readback, 0)?;
+        rec.copy_buffer(buffer.slice(offset, bytes)?, readback, 0)?;
         // submit_and_wait ends with a barrier that makes the copy host-visible.
         self.submit_and_wait(rec)?;
         readback.read_mapped(0, count)
+    }
+}
+
+/// A buffer that lives across frames: made on first use, grown (a new
+/// allocation) only when a frame needs more than it holds, reused otherwise.
+/// Passes bind [`GrowBuffer::slice`], the current frame's bytes, so a buffer
+/// grown by a large frame behaves like an exact one in a smaller frame.
+#[derive(Debug)]
+pub struct GrowBuffer {
+    desc: BufferDesc,
+    buffer: Option<Buffer>,
+    len: u64,
+}
+
+impl GrowBuffer {
+    /// A buffer of `desc`'s name, usage and location, not yet allocated
+    /// (`desc.size` is ignored).
+    pub fn new(desc: BufferDesc) -> Self {
+        GrowBuffer {
+            desc,
+            buffer: None,
+            len: 0,
+        }
+    }
+
+    /// A GPU-only storage buffer ([`BufferDesc::storage`]).
+    pub fn storage(name: &str) -> Self {
+        Self::new(BufferDesc::storage(name, 0))
+    }
+
+    /// A GPU-only storage buffer also usable as a uniform buffer (data that
+    /// every invocation reads alike).
+    pub fn storage_uniform(name: &str) -> Self {
+        let mut desc = BufferDesc::storage(name, 0);
+        desc.usage |= vk::BufferUsageFlags::UNIFORM_BUFFER;
+        Self::new(desc)
+    }
+
+    /// Makes this frame's size `size` bytes (at least 16: Vulkan has no
+    /// empty buffers or views) and returns the buffer, allocating only when
+    /// the one held is smaller.
+    pub fn get(&mut self, ctx: &GpuContext, size: u64) -> Result<&Buffer> {
+        let size = size.max(16);
+        if self.buffer.as_ref().is_none_or(|b| b.size() < size) {
+            // The old buffer is freed before the new one is made.
+            self.buffer = None;
+            let mut desc = self.desc.clone();
+            desc.size = size;
+            self.buffer = Some(ctx.create_buffer(desc)?);
+        }
+        self.len = size;
+        Ok(self.buffer.as_ref().expect("made above"))
+    }
+
+    /// The buffer (of at least the last [`GrowBuffer::get`]'s size).
+    ///
+    /// # Panics
+    /// Before the first `get`: a pass bound a buffer it never sized.
+    pub fn buffer(&self) -> &Buffer {
+        self.buffer
+            .as_ref()
+            .unwrap_or_else(|| panic!("buffer \"{}\" used before it was sized", self.desc.name))
+    }
+
+    /// This frame's bytes of the buffer: what passes bind and fill.
+    pub fn slice(&self) -> BufferSlice<'_> {
+        BufferSlice {
+            buffer: self.buffer(),
+            offset: 0,
+            size: self.len,
+        }
+    }
+
+    /// This frame's size in bytes.
+    pub fn len(&self) -> u64 {
+        self.len
+    }
+
+    /// Whether this frame's size is 0 (never sized).
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Bytes held on the device (0 before the first `get`).
+    pub fn capacity(&self) -> u64 {
+        self.buffer.as_ref().map_or(0, |b| b.size())
+    }
+
+    /// Frees the buffer; the next `get` allocates again.
+    pub fn release(&mut self) {
+        self.buffer = None;
+        self.len = 0;
+    }
+}
+
+impl<'a> From<&'a GrowBuffer> for BufferSlice<'a> {
+    fn from(b: &'a GrowBuffer) -> Self {
+        b.slice()
+    }
+}
+
+/// Which of the context's staging buffers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Staging {
+    Upload,
+    Readback,
+}
+
+/// Transfers larger than this use a staging buffer of their own, freed
+/// after the copy, instead of growing the context's reusable one.
+pub(crate) const MAX_KEPT_STAGING: u64 = 128 << 20;
+
+/// A staging buffer for one transfer: the context's reusable one (locked
+/// while the transfer runs) or, past [`MAX_KEPT_STAGING`], a temporary one.
+pub(crate) enum StagingGuard<'a> {
+    Kept(std::sync::MutexGuard<'a, GrowBuffer>),
+    Temporary(GrowBuffer),
+}
+
+impl StagingGuard<'_> {
+    pub(crate) fn get(&mut self, ctx: &GpuContext, size: u64) -> Result<&Buffer> {
+        match self {
+            StagingGuard::Kept(b) => b.get(ctx, size),
+            StagingGuard::Temporary(b) => b.get(ctx, size),
+        }
     }
 }

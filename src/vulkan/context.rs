@@ -6,8 +6,9 @@ use std::time::Duration;
 
 use ash::vk;
 
+use super::buffer::{BufferDesc, GrowBuffer, Staging, StagingGuard, MAX_KEPT_STAGING};
 use super::commands::CommandRecorder;
-use super::device::{Device, DeviceInfo};
+use super::device::{Allocations, Device, DeviceInfo};
 use super::instance::{lock, Instance, ValidationLevel, ValidationMessages, CREATION_LOCK};
 use crate::{Error, Result};
 
@@ -60,6 +61,10 @@ pub struct GpuContext {
     device: Arc<Device>,
     timeout: Duration,
     pending: Mutex<Vec<Pending>>,
+    /// Staging buffers for uploads and read-backs, reused across transfers
+    /// so that a frame's transfers allocate nothing once warm.
+    upload_staging: Mutex<GrowBuffer>,
+    readback_staging: Mutex<GrowBuffer>,
 }
 
 impl GpuContext {
@@ -86,6 +91,11 @@ impl GpuContext {
             device,
             timeout,
             pending: Mutex::new(Vec::new()),
+            upload_staging: Mutex::new(GrowBuffer::new(BufferDesc::upload("upload staging", 0))),
+            readback_staging: Mutex::new(GrowBuffer::new(BufferDesc::readback(
+                "read-back staging",
+                0,
+            ))),
         };
         ctx.check_validation()?;
         Ok(ctx)
@@ -140,6 +150,31 @@ impl GpuContext {
     /// `Err(Error::Validation)` with the collected messages, if any.
     pub fn check_validation(&self) -> Result<()> {
         self.device.instance().check_messages()
+    }
+
+    /// Buffers and images created on the device so far ([`Device::allocations`]).
+    pub fn allocations(&self) -> Allocations {
+        self.device.allocations()
+    }
+
+    /// A staging buffer for a transfer of `size` bytes: the reusable one,
+    /// or a temporary one for transfers past [`MAX_KEPT_STAGING`].
+    pub(crate) fn staging(&self, which: Staging, size: u64) -> Result<StagingGuard<'_>> {
+        let (kept, desc) = match which {
+            Staging::Upload => (
+                &self.upload_staging,
+                BufferDesc::upload("upload staging", 0),
+            ),
+            Staging::Readback => (
+                &self.readback_staging,
+                BufferDesc::readback("read-back staging", 0),
+            ),
+        };
+        Ok(if size > MAX_KEPT_STAGING {
+            StagingGuard::Temporary(GrowBuffer::new(desc))
+        } else {
+            StagingGuard::Kept(lock(kept))
+        })
     }
 
     /// Starts recording a command buffer.

@@ -4,6 +4,7 @@
 use std::ffi::CStr;
 use std::fmt;
 use std::mem::ManuallyDrop;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use ash::vk;
@@ -305,7 +306,7 @@ fn mib(bytes: u64) -> String {
 impl fmt::Display for DeviceInfo {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let l = &self.limits;
-        let rows: Vec<(&str, String)> = vec![
+        let identity: Vec<(&str, String)> = vec![
             ("device", format!("[{}] {}", self.index, self.name)),
             ("type", self.device_type.to_string()),
             (
@@ -321,52 +322,8 @@ impl fmt::Display for DeviceInfo {
                 "usable (Vulkan 1.2 + compute queue)",
                 if self.usable() { "yes" } else { "no" }.into(),
             ),
-            (
-                "maxStorageBufferRange",
-                format!(
-                    "{} ({})",
-                    l.max_storage_buffer_range,
-                    mib(l.max_storage_buffer_range as u64)
-                ),
-            ),
-            (
-                "maxUniformBufferRange",
-                l.max_uniform_buffer_range.to_string(),
-            ),
-            (
-                "maxPushConstantsSize",
-                l.max_push_constants_size.to_string(),
-            ),
-            (
-                "maxComputeSharedMemorySize",
-                l.max_compute_shared_memory_size.to_string(),
-            ),
-            (
-                "maxComputeWorkGroupCount",
-                format!("{:?}", l.max_compute_work_group_count),
-            ),
-            (
-                "maxComputeWorkGroupSize",
-                format!("{:?}", l.max_compute_work_group_size),
-            ),
-            (
-                "maxComputeWorkGroupInvocations",
-                l.max_compute_work_group_invocations.to_string(),
-            ),
-            ("maxImageDimension2D", l.max_image_dimension_2d.to_string()),
-            ("maxImageDimension3D", l.max_image_dimension_3d.to_string()),
-            (
-                "maxTexelBufferElements",
-                l.max_texel_buffer_elements.to_string(),
-            ),
-            (
-                "minStorageBufferOffsetAlignment",
-                l.min_storage_buffer_offset_alignment.to_string(),
-            ),
-            (
-                "minTexelBufferOffsetAlignment",
-                l.min_texel_buffer_offset_alignment.to_string(),
-            ),
+        ];
+        let features: Vec<(&str, String)> = vec![
             ("subgroup size", self.subgroup_size.to_string()),
             (
                 "subgroup operations",
@@ -412,6 +369,11 @@ impl fmt::Display for DeviceInfo {
                 ),
             ),
         ];
+        let rows: Vec<(&str, String)> = identity
+            .into_iter()
+            .chain(limit_rows(l))
+            .chain(features)
+            .collect();
         let width = rows.iter().map(|(k, _)| k.len()).max().unwrap_or(0);
         for (k, v) in &rows {
             writeln!(f, "  {k:<width$}  {v}")?;
@@ -431,6 +393,58 @@ impl fmt::Display for DeviceInfo {
         }
         Ok(())
     }
+}
+
+/// The limits `afs info` shows, as (name, value) rows.
+fn limit_rows(l: &DeviceLimits) -> Vec<(&'static str, String)> {
+    vec![
+        (
+            "maxStorageBufferRange",
+            format!(
+                "{} ({})",
+                l.max_storage_buffer_range,
+                mib(l.max_storage_buffer_range as u64)
+            ),
+        ),
+        (
+            "maxUniformBufferRange",
+            l.max_uniform_buffer_range.to_string(),
+        ),
+        (
+            "maxPushConstantsSize",
+            l.max_push_constants_size.to_string(),
+        ),
+        (
+            "maxComputeSharedMemorySize",
+            l.max_compute_shared_memory_size.to_string(),
+        ),
+        (
+            "maxComputeWorkGroupCount",
+            format!("{:?}", l.max_compute_work_group_count),
+        ),
+        (
+            "maxComputeWorkGroupSize",
+            format!("{:?}", l.max_compute_work_group_size),
+        ),
+        (
+            "maxComputeWorkGroupInvocations",
+            l.max_compute_work_group_invocations.to_string(),
+        ),
+        ("maxImageDimension2D", l.max_image_dimension_2d.to_string()),
+        ("maxImageDimension3D", l.max_image_dimension_3d.to_string()),
+        (
+            "maxTexelBufferElements",
+            l.max_texel_buffer_elements.to_string(),
+        ),
+        (
+            "minStorageBufferOffsetAlignment",
+            l.min_storage_buffer_offset_alignment.to_string(),
+        ),
+        (
+            "minTexelBufferOffsetAlignment",
+            l.min_texel_buffer_offset_alignment.to_string(),
+        ),
+    ]
 }
 
 /// Every physical device the loader reports, usable or not.
@@ -518,6 +532,8 @@ pub struct Device {
     queue_family: u32,
     info: DeviceInfo,
     allocator: ManuallyDrop<Mutex<Allocator>>,
+    /// Buffers and images created so far, and their bytes.
+    created: [AtomicU64; 3],
     // Declared last: dropped after the device.
     instance: Arc<Instance>,
 }
@@ -583,6 +599,7 @@ impl Device {
             queue_family,
             info,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
+            created: [AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0)],
             instance,
         }))
     }
@@ -625,6 +642,63 @@ impl Device {
     /// The memory allocator, locked.
     pub(crate) fn allocator(&self) -> std::sync::MutexGuard<'_, Allocator> {
         lock(&self.allocator)
+    }
+
+    /// Buffers and images created on this device so far (a frame's share is
+    /// the difference of two readings: how a frame shows it reused its
+    /// resources).
+    pub fn allocations(&self) -> Allocations {
+        Allocations {
+            buffers: self.created[0].load(Ordering::Relaxed),
+            images: self.created[1].load(Ordering::Relaxed),
+            bytes: self.created[2].load(Ordering::Relaxed),
+        }
+    }
+
+    /// Counts one new buffer (or image) of `bytes`.
+    pub(crate) fn count_allocation(&self, image: bool, bytes: u64) {
+        self.created[usize::from(image)].fetch_add(1, Ordering::Relaxed);
+        self.created[2].fetch_add(bytes, Ordering::Relaxed);
+    }
+}
+
+/// A count of buffers and images created, and their bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Allocations {
+    /// Buffers created.
+    pub buffers: u64,
+    /// Images (and attachments) created.
+    pub images: u64,
+    /// Their sizes in bytes, summed.
+    pub bytes: u64,
+}
+
+impl Allocations {
+    /// Buffers and images.
+    pub fn count(&self) -> u64 {
+        self.buffers + self.images
+    }
+}
+
+impl std::ops::Add for Allocations {
+    type Output = Allocations;
+    fn add(self, other: Allocations) -> Allocations {
+        Allocations {
+            buffers: self.buffers + other.buffers,
+            images: self.images + other.images,
+            bytes: self.bytes + other.bytes,
+        }
+    }
+}
+
+impl std::ops::Sub for Allocations {
+    type Output = Allocations;
+    fn sub(self, earlier: Allocations) -> Allocations {
+        Allocations {
+            buffers: self.buffers - earlier.buffers,
+            images: self.images - earlier.images,
+            bytes: self.bytes - earlier.bytes,
+        }
     }
 }
 

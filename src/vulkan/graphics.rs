@@ -99,6 +99,7 @@ impl Attachment {
                 allocation_scheme: AllocationScheme::GpuAllocatorManaged,
             })
             .map_err(|e| Error::Vulkan(format!("allocating attachment \"{name}\": {e}")))?;
+        device.count_allocation(true, requirements.size);
         let (memory, offset) = unsafe { (allocation.memory(), allocation.offset()) };
         image.allocation = Some(allocation);
         unsafe { device.raw().bind_image_memory(raw, memory, offset) }
@@ -233,6 +234,92 @@ pub struct GraphicsPipeline {
     device: Arc<Device>,
 }
 
+/// The render pass of a pipeline: clear, draw, colour left ready for a copy.
+fn render_pass(
+    d: &ash::Device,
+    desc: &GraphicsPipelineDesc<'_>,
+) -> std::result::Result<vk::RenderPass, vk::Result> {
+    let mut attachments: Vec<vk::AttachmentDescription> = desc
+        .color_formats
+        .iter()
+        .map(|&format| {
+            vk::AttachmentDescription::default()
+                .format(format)
+                .samples(vk::SampleCountFlags::TYPE_1)
+                .load_op(vk::AttachmentLoadOp::CLEAR)
+                .store_op(vk::AttachmentStoreOp::STORE)
+                .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
+                .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
+                .initial_layout(vk::ImageLayout::UNDEFINED)
+                .final_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
+        })
+        .collect();
+    let color_refs: Vec<vk::AttachmentReference> = (0..desc.color_formats.len())
+        .map(|i| vk::AttachmentReference {
+            attachment: i as u32,
+            layout: vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+        })
+        .collect();
+    let depth_ref = vk::AttachmentReference {
+        attachment: desc.color_formats.len() as u32,
+        layout: vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
+    };
+    if let Some((format, _)) = desc.depth {
+        attachments.push(
+            vk::AttachmentDescription::default()
+                .format(format)
+                .samples(vk::SampleCountFlags::TYPE_1)
+                .load_op(vk::AttachmentLoadOp::CLEAR)
+                .store_op(vk::AttachmentStoreOp::DONT_CARE)
+                .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
+                .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
+                .initial_layout(vk::ImageLayout::UNDEFINED)
+                .final_layout(vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL),
+        );
+    }
+    let mut subpass = vk::SubpassDescription::default()
+        .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
+        .color_attachments(&color_refs);
+    if desc.depth.is_some() {
+        subpass = subpass.depth_stencil_attachment(&depth_ref);
+    }
+    use vk::AccessFlags as A;
+    use vk::PipelineStageFlags as S;
+    let attachment_stages =
+        S::COLOR_ATTACHMENT_OUTPUT | S::EARLY_FRAGMENT_TESTS | S::LATE_FRAGMENT_TESTS;
+    let dependencies = [
+        // Earlier copies out of / draws into the attachments finish first.
+        vk::SubpassDependency {
+            src_subpass: vk::SUBPASS_EXTERNAL,
+            dst_subpass: 0,
+            src_stage_mask: S::TRANSFER | attachment_stages,
+            dst_stage_mask: attachment_stages,
+            src_access_mask: A::COLOR_ATTACHMENT_WRITE | A::DEPTH_STENCIL_ATTACHMENT_WRITE,
+            dst_access_mask: A::COLOR_ATTACHMENT_READ
+                | A::COLOR_ATTACHMENT_WRITE
+                | A::DEPTH_STENCIL_ATTACHMENT_READ
+                | A::DEPTH_STENCIL_ATTACHMENT_WRITE,
+            dependency_flags: vk::DependencyFlags::empty(),
+        },
+        // Colour writes are visible to the copy that follows.
+        vk::SubpassDependency {
+            src_subpass: 0,
+            dst_subpass: vk::SUBPASS_EXTERNAL,
+            src_stage_mask: S::COLOR_ATTACHMENT_OUTPUT,
+            dst_stage_mask: S::TRANSFER,
+            src_access_mask: A::COLOR_ATTACHMENT_WRITE,
+            dst_access_mask: A::TRANSFER_READ,
+            dependency_flags: vk::DependencyFlags::empty(),
+        },
+    ];
+    let subpasses = [subpass];
+    let rp_info = vk::RenderPassCreateInfo::default()
+        .attachments(&attachments)
+        .subpasses(&subpasses)
+        .dependencies(&dependencies);
+    unsafe { d.create_render_pass(&rp_info, None) }
+}
+
 impl GraphicsPipeline {
     /// Creates the render pass, layout and pipeline.
     pub fn new(device: &Arc<Device>, desc: &GraphicsPipelineDesc<'_>) -> Result<Self> {
@@ -256,87 +343,7 @@ impl GraphicsPipeline {
         };
         let d = device.raw();
 
-        // Render pass: clear, draw, colour left ready for a copy.
-        let mut attachments: Vec<vk::AttachmentDescription> = desc
-            .color_formats
-            .iter()
-            .map(|&format| {
-                vk::AttachmentDescription::default()
-                    .format(format)
-                    .samples(vk::SampleCountFlags::TYPE_1)
-                    .load_op(vk::AttachmentLoadOp::CLEAR)
-                    .store_op(vk::AttachmentStoreOp::STORE)
-                    .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
-                    .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
-                    .initial_layout(vk::ImageLayout::UNDEFINED)
-                    .final_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
-            })
-            .collect();
-        let color_refs: Vec<vk::AttachmentReference> = (0..desc.color_formats.len())
-            .map(|i| vk::AttachmentReference {
-                attachment: i as u32,
-                layout: vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
-            })
-            .collect();
-        let depth_ref = vk::AttachmentReference {
-            attachment: desc.color_formats.len() as u32,
-            layout: vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
-        };
-        if let Some((format, _)) = desc.depth {
-            attachments.push(
-                vk::AttachmentDescription::default()
-                    .format(format)
-                    .samples(vk::SampleCountFlags::TYPE_1)
-                    .load_op(vk::AttachmentLoadOp::CLEAR)
-                    .store_op(vk::AttachmentStoreOp::DONT_CARE)
-                    .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
-                    .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
-                    .initial_layout(vk::ImageLayout::UNDEFINED)
-                    .final_layout(vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL),
-            );
-        }
-        let mut subpass = vk::SubpassDescription::default()
-            .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
-            .color_attachments(&color_refs);
-        if desc.depth.is_some() {
-            subpass = subpass.depth_stencil_attachment(&depth_ref);
-        }
-        use vk::AccessFlags as A;
-        use vk::PipelineStageFlags as S;
-        let attachment_stages =
-            S::COLOR_ATTACHMENT_OUTPUT | S::EARLY_FRAGMENT_TESTS | S::LATE_FRAGMENT_TESTS;
-        let dependencies = [
-            // Earlier copies out of / draws into the attachments finish first.
-            vk::SubpassDependency {
-                src_subpass: vk::SUBPASS_EXTERNAL,
-                dst_subpass: 0,
-                src_stage_mask: S::TRANSFER | attachment_stages,
-                dst_stage_mask: attachment_stages,
-                src_access_mask: A::COLOR_ATTACHMENT_WRITE | A::DEPTH_STENCIL_ATTACHMENT_WRITE,
-                dst_access_mask: A::COLOR_ATTACHMENT_READ
-                    | A::COLOR_ATTACHMENT_WRITE
-                    | A::DEPTH_STENCIL_ATTACHMENT_READ
-                    | A::DEPTH_STENCIL_ATTACHMENT_WRITE,
-                dependency_flags: vk::DependencyFlags::empty(),
-            },
-            // Colour writes are visible to the copy that follows.
-            vk::SubpassDependency {
-                src_subpass: 0,
-                dst_subpass: vk::SUBPASS_EXTERNAL,
-                src_stage_mask: S::COLOR_ATTACHMENT_OUTPUT,
-                dst_stage_mask: S::TRANSFER,
-                src_access_mask: A::COLOR_ATTACHMENT_WRITE,
-                dst_access_mask: A::TRANSFER_READ,
-                dependency_flags: vk::DependencyFlags::empty(),
-            },
-        ];
-        let subpasses = [subpass];
-        let rp_info = vk::RenderPassCreateInfo::default()
-            .attachments(&attachments)
-            .subpasses(&subpasses)
-            .dependencies(&dependencies);
-        pipeline.render_pass =
-            unsafe { d.create_render_pass(&rp_info, None) }.map_err(|e| err("render pass", e))?;
+        pipeline.render_pass = render_pass(d, desc).map_err(|e| err("render pass", e))?;
 
         let stages_flags = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
         let ranges = [vk::PushConstantRange {

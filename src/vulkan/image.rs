@@ -120,6 +120,7 @@ impl Image {
                 allocation_scheme: AllocationScheme::GpuAllocatorManaged,
             })
             .map_err(|e| Error::Vulkan(format!("allocating image \"{}\": {e}", desc.name)))?;
+        device.count_allocation(true, requirements.size);
         let (memory, offset) = unsafe { (allocation.memory(), allocation.offset()) };
         image.allocation = Some(allocation);
         unsafe { device.raw().bind_image_memory(raw, memory, offset) }

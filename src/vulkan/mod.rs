@@ -7,7 +7,8 @@
 //!   allocator) with [`GpuContext::submit_and_wait`];
 //! - [`commands`]: [`CommandRecorder`], one command buffer being recorded,
 //!   with dispatch and binding helpers;
-//! - [`buffer`] and [`image`]: resources through `gpu-allocator`;
+//! - [`buffer`] and [`image`]: resources through `gpu-allocator`; a
+//!   [`GrowBuffer`] lives across frames and grows only when a frame needs more;
 //! - [`shader`] and [`pipeline`]: compute pipelines with specialization and
 //!   push constants;
 //! - [`barrier`]: the memory barriers between passes;
@@ -81,10 +82,14 @@ pub mod shader;
 
 pub use ash::vk;
 pub use barrier::Barrier;
-pub use buffer::{storage_binding_ranges, Buffer, BufferDesc, BufferSlice, MemoryLocation};
+pub use buffer::{
+    storage_binding_ranges, Buffer, BufferDesc, BufferSlice, GrowBuffer, MemoryLocation,
+};
 pub use commands::CommandRecorder;
 pub use context::{ContextOptions, GpuContext};
-pub use device::{list_devices, Device, DeviceInfo, DeviceLimits, DeviceType, MemoryHeapInfo};
+pub use device::{
+    list_devices, Allocations, Device, DeviceInfo, DeviceLimits, DeviceType, MemoryHeapInfo,
+};
 pub use graphics::{
     vertex_input_barrier, Attachment, Framebuffer, GraphicsPipeline, GraphicsPipelineDesc,
     VertexAttribute,
