@@ -20,49 +20,49 @@ type Variant = (
 );
 const VARIANTS: &[Variant] = &[
     (
-        "tile_units",
-        "TILE_UNITS_SAMPLE_LANES",
+        "tile_bin_units",
+        "TILE_BIN_UNITS_SAMPLE_LANES",
         &[("SAMPLE_LANES", "1")],
     ),
-    ("occlusion_soft", "OCCLUSION_SOFT_EXACT", &[("EXACT", "1")]),
+    ("soft_occlusion", "SOFT_OCCLUSION_EXACT", &[("EXACT", "1")]),
     (
-        "occlusion_soft",
-        "OCCLUSION_SOFT_LUT1",
+        "soft_occlusion",
+        "SOFT_OCCLUSION_LUT1",
         &[("LUT_BLOCKS", "1")],
     ),
     (
-        "occlusion_soft",
-        "OCCLUSION_SOFT_LUT2",
+        "soft_occlusion",
+        "SOFT_OCCLUSION_LUT2",
         &[("LUT_BLOCKS", "2")],
     ),
     (
-        "occlusion_soft",
-        "OCCLUSION_SOFT_LUT3",
+        "soft_occlusion",
+        "SOFT_OCCLUSION_LUT3",
         &[("LUT_BLOCKS", "3")],
     ),
     (
-        "occlusion_soft",
-        "OCCLUSION_SOFT_LUT4",
+        "soft_occlusion",
+        "SOFT_OCCLUSION_LUT4",
         &[("LUT_BLOCKS", "4")],
     ),
     (
-        "occlusion_soft",
-        "OCCLUSION_SOFT_LUT5",
+        "soft_occlusion",
+        "SOFT_OCCLUSION_LUT5",
         &[("LUT_BLOCKS", "5")],
     ),
     (
-        "occlusion_soft",
-        "OCCLUSION_SOFT_LUT6",
+        "soft_occlusion",
+        "SOFT_OCCLUSION_LUT6",
         &[("LUT_BLOCKS", "6")],
     ),
     (
-        "occlusion_soft",
-        "OCCLUSION_SOFT_LUT7",
+        "soft_occlusion",
+        "SOFT_OCCLUSION_LUT7",
         &[("LUT_BLOCKS", "7")],
     ),
     (
-        "occlusion_soft",
-        "OCCLUSION_SOFT_LUT8",
+        "soft_occlusion",
+        "SOFT_OCCLUSION_LUT8",
         &[("LUT_BLOCKS", "8")],
     ),
 ];

@@ -1,10 +1,10 @@
 #version 450
-// Pass 6b (indirect): the (caster, face) pairs whose projection crosses the
+// Indirect: the (caster, face) pairs whose projection crosses the
 // face's window pyramid: clipped to it (a triangle crossing the light's
-// near plane is clipped, not dropped), then emitted like caster_setup's.
+// near plane is clipped, not dropped), then emitted like casters_setup's.
 // Twin: cpu::casters::setup_casters.
 #extension GL_GOOGLE_include_directive : require
-#include "caster_common.glsl"
+#include "casters_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 
 #define MAX_POLY 9

@@ -1,7 +1,7 @@
 #version 450
-// The indirect workgroup counts of caster_clip: one invocation per clip item.
+// The indirect workgroup counts of casters_clip: one invocation per clip item.
 #extension GL_GOOGLE_include_directive : require
-#include "hard_common.glsl"
+#include "shadow_common.glsl"
 layout(local_size_x = 1) in;
 
 layout(set = 0, binding = 0) readonly buffer Counters { uint counters[]; };

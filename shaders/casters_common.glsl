@@ -1,4 +1,4 @@
-// Shared by caster_setup (every triangle, the common case) and caster_clip
+// Shared by casters_setup (every triangle, the common case) and casters_clip
 // (the few (triangle, face) pairs that cross the face's window pyramid):
 // the bindings and the per-face conservative rectangle and edges of a
 // caster's projection. Twin: cpu::casters::caster_face.
@@ -6,20 +6,20 @@
 // The split exists for lavapipe: a shader that declares a dynamically
 // indexed private array (the clip polygon) pays for it on every invocation,
 // used or not (measured: 100k triangles took 105 ms with an immediate
-// return, 7 ms without the array). Only caster_clip declares one.
+// return, 7 ms without the array). Only casters_clip declares one.
 #ifndef AFS_CASTER_COMMON_GLSL
 #define AFS_CASTER_COMMON_GLSL
-#include "hard_common.glsl"
+#include "shadow_common.glsl"
 
 layout(set = 0, binding = 0) uniform usamplerBuffer triangles_tb; // GpuTriangle: 3 texels
 layout(set = 0, binding = 1) uniform Faces { LightFace faces[6]; }; // read alike: a uniform buffer
 layout(set = 0, binding = 2) writeonly buffer Planes { CasterPlanes planes[]; };
 layout(set = 0, binding = 3) writeonly buffer Pairs { CasterFace pairs[]; };
 layout(set = 0, binding = 4) buffer Counters { uint counters[]; };
-// (triangle, face mask | CLIP_ITEM_RASTERIZED): the pairs left to caster_clip.
+// (triangle, face mask | CLIP_ITEM_RASTERIZED): the pairs left to casters_clip.
 layout(set = 0, binding = 5) buffer ClipItems { uvec2 clip_items[]; };
 
-// Clip item flag: the triangle already has a pair from caster_setup.
+// Clip item flag: the triangle already has a pair from casters_setup.
 #define CLIP_ITEM_RASTERIZED 0x100u
 
 // Camera-relative vertex k of triangle i.
@@ -108,7 +108,7 @@ void append_pair(uint i, uint f, uvec4 rect, vec4 e0, vec4 e1, vec4 e2) {
 // (z_min, lo, hi, touches_light) and its unclipped projection t0..t2;
 // false when the polygon lies beyond the farthest view sample. `scale`:
 // the magnitude of the polygon's projected coordinates beyond the face's
-// (caster_clip: what clipping far vertices adds).
+// (casters_clip: what clipping far vertices adds).
 bool emit_pair(uint i, uint f, LightFace lf, vec3 t0, vec3 t1, vec3 t2, float z_min, vec2 lo,
                vec2 hi, bool touches_light, float scale) {
     bool point = is_point_light();

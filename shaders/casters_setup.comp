@@ -1,12 +1,12 @@
 #version 450
-// Pass 6: per triangle, whether it casts and its four planes (paper §3.3);
+// Per triangle, whether it casts and its four planes (paper §3.3);
 // per light face, its projection as a conservative texel rectangle plus
 // texel-space edge functions, appended to the (caster, face) pairs. A
 // projection wholly inside the face's window pyramid is emitted here; one
-// crossing it is left to caster_clip (see caster_common.glsl for why).
+// crossing it is left to casters_clip (see casters_common.glsl for why).
 // Twin: cpu::casters::setup_casters.
 #extension GL_GOOGLE_include_directive : require
-#include "caster_common.glsl"
+#include "casters_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 
 // The image (texel coordinates) of face point p seen from the light's centre.
@@ -23,7 +23,8 @@ void fold_image(LightFace lf, vec3 p, inout vec2 lo, inout vec2 hi) {
 // light's silhouette (seen from each vertex) through the vertex, to the
 // farthest view sample's depth; plus its edges' crossings of that depth.
 // A vertex as near as the light's extent makes the region the whole face.
-// Twin: cpu::soft::influence_rect.
+// No twin of its own: tests/soft_shadows.rs checks that the regions drop
+// no blocking caster (the GPU masks against a brute force without regions).
 void soft_caster(uint i, vec3 v[3], vec3 n, bool closed) {
     vec3 o = pc.origin.xyz;
     float R = pc.soft_light.x;
@@ -189,13 +190,13 @@ void main() {
         }
         vec3 t0 = to_face(lf, v[0] - o), t1 = to_face(lf, v[1] - o), t2 = to_face(lf, v[2] - o);
         vec2 x1y1 = window_end(lf);
-        // The window pyramid's planes, evaluated exactly as caster_clip's clip() does.
+        // The window pyramid's planes, evaluated exactly as casters_clip's clip() does.
         vec4 wplanes[5] = vec4[5](vec4(1, 0, -lf.window.x, 0), vec4(-1, 0, x1y1.x, 0), vec4(0, 1, -lf.window.y, 0),
                                   vec4(0, -1, x1y1.y, 0), vec4(0, 0, 1, 0));
         // Quick accept / reject: a triangle wholly inside needs no clipping
         // (clipping would return it unchanged), one wholly outside a plane
         // is empty there.
-        // Rejection allows caster_clip's slack, so that what it would keep
+        // Rejection allows casters_clip's slack, so that what it would keep
         // is never rejected here.
         bool all_in = true;
         bool rejected = false;

@@ -1,8 +1,8 @@
 #version 450
-// Pass 2b: turns each face's min/max keys into its window (one workgroup).
+// Turns each face's min/max keys into its window (one workgroup).
 // Twin: cpu::light_view::fit_finalize.
 #extension GL_GOOGLE_include_directive : require
-#include "hard_common.glsl"
+#include "shadow_common.glsl"
 layout(local_size_x = 8) in;
 
 layout(set = 0, binding = 0) readonly buffer Fit { uint fit_keys[]; };

@@ -1,12 +1,12 @@
 #version 450
-// Pass 2a: per view sample facing the light, its face and projection;
+// Per view sample facing the light, its face and projection;
 // per face the min/max of x, y and the max depth (paper §4.3 frustum fit).
 // Twin: cpu::light_view::fit_windows.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_vote : require
-#include "hard_common.glsl"
+#include "shadow_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 
 layout(set = 0, binding = 0) readonly buffer Samples { GpuViewSample samples[]; };

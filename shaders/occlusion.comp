@@ -1,16 +1,16 @@
 #version 450
-// Pass 10: one workgroup per work unit (a tile, a chunk of OCC_PAIR_CHUNK
-// of its pairs and a chunk of OCC_SAMPLE_CHUNK list entries; see tile_units),
+// One workgroup per work unit (a tile, a chunk of OCC_PAIR_CHUNK
+// of its pairs and a chunk of OCC_SAMPLE_CHUNK list entries; see tile_bin_units),
 // one invocation per light texel of the tile. For every pair of the chunk
 // whose projection may touch the texel, every view sample of the texel's
 // list chunk is tested against the caster's planes; a hit sets the sample's
 // shadow flag (the OR of paper §3.3). The chunks bound every invocation's
-// loop iterations below lavapipe's per-invocation limit (hard_common.glsl).
+// loop iterations below lavapipe's per-invocation limit (shadow_common.glsl).
 // Twin: cpu::occlusion::occlusion.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_basic : require
-#include "hard_common.glsl"
+#include "shadow_common.glsl"
 layout(local_size_x = 64) in;
 
 // The hot gathers come from texel buffers (RGBA32UI / R32UI views): on

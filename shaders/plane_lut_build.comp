@@ -3,7 +3,7 @@
 // at once: one invocation per texel, one bit per light sample behind the
 // texel's plane. Built once per light shape and resolution (the host caches
 // it across frames: it depends only on the normalized samples).
-// Twin: cpu::soft::build_lut.
+// Twin: cpu::plane_lut::build_lut.
 #extension GL_GOOGLE_include_directive : require
 #define LIGHT_SAMPLES_BINDING 1
 #include "soft_common.glsl"

@@ -1,8 +1,8 @@
 #version 450
-// Pass 11: per view sample, visibility = 1 - its shadow flag, and whether
+// Per view sample, visibility = 1 - its shadow flag, and whether
 // the shadow passes evaluated it (0 for samples facing away from the light).
 #extension GL_GOOGLE_include_directive : require
-#include "hard_common.glsl"
+#include "shadow_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 
 layout(set = 0, binding = 0) readonly buffer SampleTexel { uint sample_texel[]; };

@@ -3,7 +3,7 @@
 // front of its surface (the oracle's normal rule) and not blocked;
 // visibility = their count / light samples (paper §4). Samples that face
 // away from the whole light were never listed: 0, not evaluated.
-// Twin: cpu::soft::resolve.
+// Twin: cpu::resolve::resolve_soft.
 #extension GL_GOOGLE_include_directive : require
 #define LIGHT_SAMPLES_BINDING 6
 #include "soft_common.glsl"

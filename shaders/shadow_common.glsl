@@ -1,14 +1,14 @@
-// Shared by the hard-shadow passes (light_fit, texel_count, texel_scatter,
-// caster_setup, tile_bin, occlusion, resolve). Structs are arrays of vec4 /
+// Shared by every shadow pass of a light, hard and soft (light_view_*,
+// texel_lists_*, casters_*, tile_bin*, occlusion, soft_occlusion, resolve_*). Structs are arrays of vec4 /
 // uvec4 so std430 and the #[repr(C)] twins in src/gpu/shared.rs agree.
 // Every function mirrors one in src/cpu/ (light_view.rs, casters.rs,
 // occlusion.rs), in the same f32 arithmetic.
-#ifndef AFS_HARD_COMMON_GLSL
-#define AFS_HARD_COMMON_GLSL
+#ifndef AFS_SHADOW_COMMON_GLSL
+#define AFS_SHADOW_COMMON_GLSL
 #include "common.glsl"
 
 #define NOT_LISTED 0xffffffffu
-// Workgroup size of the 1D hard-shadow passes (WG in src/gpu/hard_shadows.rs).
+// Workgroup size of the 1D hard-shadow passes (WG in src/gpu/dispatch.rs).
 #define WORKGROUP_1D 64
 #define TILE 8u
 // Occlusion work units: one workgroup per (tile, chunk of OCC_PAIR_CHUNK
@@ -22,7 +22,7 @@ layout(constant_id = 2) const uint OCC_PAIR_CHUNK = 64u;
 layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 #define TEXEL_MARGIN 0.01
 // Rounding of projected coordinates that the texel margins absorb, in ulps
-// of their magnitude (caster_common.glsl: face_scale, texel_margin).
+// of their magnitude (casters_common.glsl: face_scale, texel_margin).
 #define ROUNDING_ULPS 32.0
 // GpuTriangle flags bit: the triangle belongs to a closed mesh.
 #define TRIANGLE_CLOSED 4u
@@ -41,7 +41,7 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 #define COUNTER_COUNT 12
 
 // Frame-wide parameters (push constants).
-struct HardPush {
+struct LightPush {
     vec4 origin;       // xyz: light position (point) or 0 (directional); w: LIGHT_KIND_* bits
     vec4 direction;    // xyz: directional light's travel direction
     uvec4 sizes;       // x: view samples, y: triangles, z: resolution, w: face count
@@ -54,7 +54,7 @@ struct HardPush {
 };
 #define SOFT_EXACT 1u
 
-// One light face: basis and fitted window (written by light_fit_finalize).
+// One light face: basis and fitted window (written by light_view_finalize).
 struct LightFace {
     vec4 right;   // xyz; w: 1 when the face has samples
     vec4 up;
@@ -94,7 +94,7 @@ struct CasterFace {
     vec4 e2;
 };
 
-layout(push_constant) uniform Push { HardPush pc; };
+layout(push_constant) uniform Push { LightPush pc; };
 // The global id of this run's triangle i: view samples name their own triangle globally.
 uint global_triangle(uint i) { return i + floatBitsToUint(pc.soft_light.z); }
 

@@ -6,16 +6,16 @@
 // index serves every block). Texel (i, j, k): n in octahedral coordinates
 // (i, j over [-1, 1]^2: no trigonometry, cells within a factor ~2 of equal
 // area) and d over [-1, 1].
-// Twin: cpu::soft (lut_texel_plane, lut_index, build_lut).
+// Twin: cpu::plane_lut (lut_texel_plane, lut_index, build_lut).
 #ifndef AFS_SOFT_COMMON_GLSL
 #define AFS_SOFT_COMMON_GLSL
-#include "hard_common.glsl"
+#include "shadow_common.glsl"
 
 #define MAX_LIGHT_SAMPLES 1024
 #define MAX_LIGHT_BLOCKS 8
 
 // Light samples (xyz), read alike by every invocation: camera-relative, or
-// normalized (lut_build); each shader defines LIGHT_SAMPLES_BINDING before
+// normalized (plane_lut_build); each shader defines LIGHT_SAMPLES_BINDING before
 // including this file.
 layout(set = 0, binding = LIGHT_SAMPLES_BINDING, std140) uniform LightSamples { vec4 light_samples[MAX_LIGHT_SAMPLES]; };
 

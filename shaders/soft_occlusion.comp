@@ -12,7 +12,7 @@
 // The OR over casters goes into x's mask with one atomic OR per word; a
 // sample whose every light sample is blocked stops early. Closed meshes
 // block only light samples behind their oriented plane (the back-face rule
-// per light sample: no acne). Twin: cpu::soft::blocked_bits.
+// per light sample: no acne). Twin: cpu::soft_occlusion::blocked_bits.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_basic : require
@@ -83,7 +83,7 @@ layout(set = 0, binding = 7) buffer Masks { uint masks[]; };         // per list
 layout(set = 0, binding = 8) buffer Counters { uint counters[]; };
 layout(set = 0, binding = 9) readonly buffer UnitOffsets { uint unit_offsets[]; };
 layout(set = 0, binding = 11) uniform usamplerBuffer lut_tb;         // LUT, all blocks
-#include "occlusion_units.glsl"
+#include "soft_occlusion_units.glsl"
 
 #define LUT_ALL 0xffffffffu
 

@@ -1,4 +1,4 @@
-// Occlusion work units (tile_units.comp with SAMPLE_LANES): one workgroup
+// Occlusion work units (tile_bin_units.comp with SAMPLE_LANES): one workgroup
 // per (tile, chunk of OCC_PAIR_CHUNK of its binned pairs, chunk of 64 of its
 // listed samples), one invocation per listed sample. The tile's lists are
 // contiguous (tile-major texel order, texel_index), so every lane of a

@@ -1,9 +1,9 @@
 #version 450
-// Pass 3: per view sample facing the light, its light texel; an atomic
+// Per view sample facing the light, its light texel; an atomic
 // counter per texel counts the samples and gives each its index in the list.
 // Twin: cpu::texel_lists::build_texel_lists.
 #extension GL_GOOGLE_include_directive : require
-#include "hard_common.glsl"
+#include "shadow_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 
 layout(set = 0, binding = 0) readonly buffer Samples { GpuViewSample samples[]; };

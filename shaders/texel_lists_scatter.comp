@@ -1,10 +1,10 @@
 #version 450
-// Pass 5: writes every listed sample into the compact list array at its
+// Writes every listed sample into the compact list array at its
 // texel's offset plus its index, camera-relative position and triangle
 // id (what the occlusion test reads); remembers each
 // sample's slot. Twin: cpu::texel_lists::build_texel_lists.
 #extension GL_GOOGLE_include_directive : require
-#include "hard_common.glsl"
+#include "shadow_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 
 layout(set = 0, binding = 0) readonly buffer Samples { GpuViewSample samples[]; };

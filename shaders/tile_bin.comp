@@ -1,10 +1,10 @@
 #version 450
-// Pass 7/9: conservative binning of (caster, face) pairs into tiles of
+// Conservative binning of (caster, face) pairs into tiles of
 // TILE x TILE light texels: every tile the pair's projection may touch.
 // SCATTER = 0 counts pairs per tile; SCATTER = 1 writes them at the
-// scanned offsets. Twin: cpu::occlusion (which visits the texels directly).
+// scanned offsets. Twin: cpu::tile_bin::bin_pairs.
 #extension GL_GOOGLE_include_directive : require
-#include "hard_common.glsl"
+#include "shadow_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 layout(constant_id = 1) const uint SCATTER = 0u;
 

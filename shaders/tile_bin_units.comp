@@ -1,10 +1,10 @@
 #version 450
-// Pass 8: per tile, its occlusion work units: chunks of OCC_PAIR_CHUNK
+// Per tile, its occlusion work units: chunks of OCC_PAIR_CHUNK
 // binned pairs times chunks of OCC_SAMPLE_CHUNK entries of its longest
 // texel list (0 when either is empty). Scanned, they map occlusion
 // workgroups to (tile, pair chunk, sample chunk).
 #extension GL_GOOGLE_include_directive : require
-#include "hard_common.glsl"
+#include "shadow_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 
 layout(set = 0, binding = 0) readonly buffer TileCounts { uint tile_counts[]; };

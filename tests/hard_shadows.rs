@@ -3,8 +3,8 @@
 
 use alias_free_shadows::cpu::hard_shadows::hard_shadows;
 use alias_free_shadows::cpu::light_view::LightView;
-use alias_free_shadows::gpu::hard_shadows::{gpu_inputs, HardShadowPass};
 use alias_free_shadows::gpu::shared::counter;
+use alias_free_shadows::gpu::{gpu_inputs, ShadowPipeline};
 use alias_free_shadows::light::{LightSamples, LightShape};
 use alias_free_shadows::oracle::Oracle;
 use alias_free_shadows::scene::file;
@@ -118,7 +118,7 @@ fn cpu_twins_match_the_oracle() {
 #[test]
 fn gpu_matches_the_oracle_and_the_twins() {
     let ctx = GpuContext::new(&ContextOptions::validated()).unwrap();
-    let mut pass = HardShadowPass::new(&ctx).unwrap();
+    let mut pass = ShadowPipeline::new(&ctx).unwrap();
     for spec in SCENES {
         let c = case(spec, 96);
         for res in [16, 64, 256] {

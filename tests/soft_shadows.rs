@@ -1,11 +1,12 @@
-//! The soft-shadow passes against their CPU twin ([`cpu::soft`]): the GPU's
+//! The soft-shadow passes against their CPU twin ([`cpu::plane_lut`], [`cpu::soft_occlusion`]): the GPU's
 //! plane look-up texture bit for bit, and the GPU's visible light samples
 //! against the twin's brute force (every view sample against every
 //! triangle, no influence regions, no binning), in look-up and exact modes.
 //! The brute force checks that the influence regions, the culling of closed
 //! triangles and the sphere rejection drop no triangle that blocks a sample.
 
-use alias_free_shadows::cpu::soft::{self, PlaneBits};
+use alias_free_shadows::cpu::plane_lut as soft;
+use alias_free_shadows::cpu::soft_occlusion::{blocked_bits, PlaneBits};
 use alias_free_shadows::oracle::Oracle;
 use alias_free_shadows::render::{self, Engine};
 use alias_free_shadows::scene::file::{self, ShadowSettings, SoftMode};
@@ -121,14 +122,13 @@ fn visible_samples_match_the_brute_force_twin() {
                         if t as u32 == s.triangle {
                             continue;
                         }
-                        let exact =
-                            soft::blocked_bits(p, *v, *closed, c, rad, n_light, &exact_bits);
+                        let exact = blocked_bits(p, *v, *closed, c, rad, n_light, &exact_bits);
                         let Some(exact) = exact else { continue };
                         let hides = exact.iter().any(|b| b.iter().any(|&w| w != 0));
                         let b = match mode {
                             SoftMode::Exact => exact,
                             SoftMode::Lut => {
-                                soft::blocked_bits(p, *v, *closed, c, rad, n_light, &bits).unwrap()
+                                blocked_bits(p, *v, *closed, c, rad, n_light, &bits).unwrap()
                             }
                         };
                         for (k, x) in b.iter().enumerate() {

@@ -19,7 +19,7 @@ fn render(ctx: &GpuContext, camera: &Camera, tris: &[GpuTriangle]) -> (Vec<GpuVi
     let mut pass = ViewSamplePass::new(ctx).unwrap();
     let (buf, ms) = pass.render(ctx, camera, tris).unwrap();
     let n = camera.width as usize * camera.height as usize;
-    (read_view_samples(ctx, &buf, n).unwrap(), ms)
+    (read_view_samples(ctx, buf, n).unwrap(), ms)
 }
 
 fn compare_with_oracle(spec: &str, width: u32, height: u32) {

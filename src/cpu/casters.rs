@@ -325,34 +325,42 @@ pub fn caster_face(
             cl((hi.y + m.y).floor()),
         ]
     };
-    // Edge functions of the unclipped triangle's projection, when every
-    // vertex is in front of the light (then the projection is a triangle
-    // containing the clipped polygon's).
-    let edges = (|| {
-        let pr: Vec<Vec2> = tri.iter().map(|p| project(*p)).collect::<Option<_>>()?;
-        let reach = pr
-            .iter()
-            .map(|q| q.x.abs().max(q.y.abs()))
-            .fold(0.0f32, f32::max);
-        let t: Vec<Vec2> = pr.into_iter().map(to_texel).collect();
-        let area = (t[1] - t[0]).perp_dot(t[2] - t[0]);
-        let em = texel_margin(window, scale + reach);
-        if !area.is_finite() || area.abs() < 1e-6 || !em.is_finite() {
-            return None;
-        }
-        let s = area.signum();
-        let mut e = [[0.0f32; 3]; 3];
-        for k in 0..3 {
-            let a = t[k];
-            let b = t[(k + 1) % 3];
-            // Inside: s · cross(b - a, x - a) >= 0.
-            let ea = -(b.y - a.y) * s;
-            let eb = (b.x - a.x) * s;
-            e[k] = [ea, eb, -(ea * a.x + eb * a.y)];
-        }
-        Some((e, em.to_array()))
-    })();
+    let edges = texel_edges(&tri, project, to_texel, window, scale);
     Some((rect, edges))
+}
+
+/// Edge functions of the unclipped triangle's projection in texel space,
+/// when every vertex is in front of the light (then the projection is a
+/// triangle containing the clipped polygon's), with their margin.
+fn texel_edges(
+    tri: &[Vec3; 3],
+    project: impl Fn(Vec3) -> Option<Vec2>,
+    to_texel: impl Fn(Vec2) -> Vec2,
+    window: &FaceWindow,
+    scale: f32,
+) -> Option<(TexelEdges, [f32; 2])> {
+    let pr: Vec<Vec2> = tri.iter().map(|p| project(*p)).collect::<Option<_>>()?;
+    let reach = pr
+        .iter()
+        .map(|q| q.x.abs().max(q.y.abs()))
+        .fold(0.0f32, f32::max);
+    let t: Vec<Vec2> = pr.into_iter().map(to_texel).collect();
+    let area = (t[1] - t[0]).perp_dot(t[2] - t[0]);
+    let em = texel_margin(window, scale + reach);
+    if !area.is_finite() || area.abs() < 1e-6 || !em.is_finite() {
+        return None;
+    }
+    let s = area.signum();
+    let mut e = [[0.0f32; 3]; 3];
+    for k in 0..3 {
+        let a = t[k];
+        let b = t[(k + 1) % 3];
+        // Inside: s · cross(b - a, x - a) >= 0.
+        let ea = -(b.y - a.y) * s;
+        let eb = (b.x - a.x) * s;
+        e[k] = [ea, eb, -(ea * a.x + eb * a.y)];
+    }
+    Some((e, em.to_array()))
 }
 
 /// Whether the texel-space square [x0, x1] × [y0, y1] may overlap a triangle

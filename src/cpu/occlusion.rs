@@ -1,21 +1,21 @@
 //! CPU twin of the conservative rasterization and occlusion passes
-//! (`tile_bin.comp`, `occlusion.comp`): every (caster, face) pair visits
+//! (`occlusion.comp`): every (caster, face) pair visits
 //! every light texel its projection may touch, and every view sample listed
 //! there is tested against the caster's planes; a hit sets the sample's
 //! shadow bit (paper §3.2–3.3).
 //!
-//! The GPU bins pairs into tiles of [`TILE`]² texels first; the twin
-//! visits the same texels directly, which is what makes it a reference for
-//! the binning.
+//! The GPU bins pairs into tiles of [`TILE`]² texels first
+//! ([`crate::cpu::tile_bin`]); this twin visits the same texels directly,
+//! which is what makes it a reference for the binning.
 
 use glam::Vec3;
 
-use super::casters::{square_overlaps, CasterFace, CasterPlanes};
+use super::casters::{CasterFace, CasterPlanes};
 use super::light_view::LightView;
 use super::texel_lists::TexelLists;
-
-/// Texels per side of a rasterization tile.
-pub const TILE: u32 = 8;
+use super::tile_bin::texel_touched;
+#[cfg(doc)]
+use super::tile_bin::TILE;
 
 /// Per-pass counters.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -24,21 +24,6 @@ pub struct OcclusionCounts {
     pub texels_visited: u64,
     /// View-sample–triangle tests.
     pub tests: u64,
-}
-
-/// Whether texel (tx, ty) is touched by the pair's projection (conservative).
-pub fn texel_touched(cf: &CasterFace, tx: u32, ty: u32) -> bool {
-    match &cf.edges {
-        Some((e, m)) => square_overlaps(
-            e,
-            *m,
-            tx as f32,
-            ty as f32,
-            tx as f32 + 1.0,
-            ty as f32 + 1.0,
-        ),
-        None => true,
-    }
 }
 
 /// Runs every pair over its texels and returns per-sample shadow bits.

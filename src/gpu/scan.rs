@@ -219,25 +219,9 @@ impl ScanPass {
         output: BufferSlice<'_>,
         n: u32,
     ) -> Result<()> {
-        if n > self.max_len() {
-            return Err(Error::Vulkan(format!(
-                "scan of {n} values: the device binds at most {} (maxStorageBufferRange {} bytes)",
-                self.max_len(),
-                self.device.limits().max_storage_buffer_range
-            )));
-        }
+        self.check(&input, &output, n)?;
         let in_bytes = 4 * n as u64;
         let out_bytes = 4 * (n as u64 + 1);
-        if input.size < in_bytes || output.size < out_bytes {
-            return Err(Error::InvalidInput(format!(
-                "scan of {n} values needs {in_bytes} input bytes and {out_bytes} output bytes; \
-                 got {} (\"{}\") and {} (\"{}\")",
-                input.size,
-                input.buffer.name(),
-                output.size,
-                output.buffer.name()
-            )));
-        }
         let sizes = self.level_sizes(n);
         self.reserve_levels(&sizes)?;
         let top = sizes.len() - 1;
@@ -334,6 +318,30 @@ impl ScanPass {
         }
         for s in &self.scratch[..top] {
             rec.keep_alive(Arc::clone(s) as _);
+        }
+        Ok(())
+    }
+
+    /// A scan of `n` values fits the device, and `input` and `output` hold them.
+    fn check(&self, input: &BufferSlice<'_>, output: &BufferSlice<'_>, n: u32) -> Result<()> {
+        if n > self.max_len() {
+            return Err(Error::Vulkan(format!(
+                "scan of {n} values: the device binds at most {} (maxStorageBufferRange {} bytes)",
+                self.max_len(),
+                self.device.limits().max_storage_buffer_range
+            )));
+        }
+        let in_bytes = 4 * n as u64;
+        let out_bytes = 4 * (n as u64 + 1);
+        if input.size < in_bytes || output.size < out_bytes {
+            return Err(Error::InvalidInput(format!(
+                "scan of {n} values needs {in_bytes} input bytes and {out_bytes} output bytes; \
+                 got {} (\"{}\") and {} (\"{}\")",
+                input.size,
+                input.buffer.name(),
+                output.size,
+                output.buffer.name()
+            )));
         }
         Ok(())
     }

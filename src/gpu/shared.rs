@@ -138,13 +138,13 @@ const _: () = assert!(std::mem::size_of::<GpuViewSample>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuTriangle>() == 48);
 const _: () = assert!(std::mem::size_of::<FrameConstants>() == 160);
 
-// ---- Hard shadows (shaders/hard_common.glsl) -------------------------------
+// ---- The shadow passes of a light (shaders/shadow_common.glsl) -------------
 
 /// `NOT_LISTED`: a sample in no light-texel list.
 pub const NOT_LISTED: u32 = u32::MAX;
 /// `TRIANGLE_CLOSED`: [`GpuTriangle::flags`] bit of triangles of closed meshes.
 pub const TRIANGLE_CLOSED: u32 = 4;
-/// Counter slots of the hard-shadow passes (`COUNTER_*`).
+/// Counter slots of the shadow passes (`COUNTER_*`).
 pub mod counter {
     pub const PAIRS: usize = 0;
     pub const DEGENERATE: usize = 1;
@@ -160,10 +160,10 @@ pub mod counter {
     pub const COUNT: usize = 12;
 }
 
-/// `HardPush`: push constants of every hard-shadow pass.
+/// `LightPush`: push constants of every shadow pass of a light, hard and soft.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct HardPush {
+pub struct LightPush {
     /// xyz: light position (point) or 0; w: `LIGHT_KIND_*` bits.
     pub origin: [f32; 4],
     /// xyz: a directional light's travel direction.
@@ -220,7 +220,7 @@ pub struct GpuCasterFace {
     pub edges: [[f32; 4]; 3],
 }
 
-const _: () = assert!(std::mem::size_of::<HardPush>() == 128);
+const _: () = assert!(std::mem::size_of::<LightPush>() == 128);
 const _: () = assert!(std::mem::size_of::<GpuLightFace>() == 128);
 const _: () = assert!(std::mem::size_of::<GpuCasterPlanes>() == 80);
 const _: () = assert!(std::mem::size_of::<GpuCasterFace>() == 64);

@@ -33,7 +33,7 @@ use crate::scene::Camera;
 use crate::vulkan::{
     vertex_input_barrier, vk, Attachment, Barrier, Binding, Buffer, BufferDesc, ComputePipeline,
     ComputePipelineDesc, DescriptorKind, Framebuffer, GpuContext, GraphicsPipeline,
-    GraphicsPipelineDesc, Profiler, VertexAttribute,
+    GraphicsPipelineDesc, GrowBuffer, Profiler, VertexAttribute,
 };
 use crate::{Error, Result};
 
@@ -73,11 +73,18 @@ struct Targets {
 }
 
 /// The view-sample pass: pipelines made once, render targets kept per image
-/// size. See the [module documentation](self).
+/// size, buffers kept across frames. See the [module documentation](self).
 pub struct ViewSamplePass {
     raster: GraphicsPipeline,
     resolve: ComputePipeline,
     targets: Option<Targets>,
+    /// The triangles, also the vertex buffer.
+    triangles: GrowBuffer,
+    /// The raster's triangle ids, copied out of the attachment.
+    ids: GrowBuffer,
+    /// The view samples.
+    samples: GrowBuffer,
+    profiler: Profiler,
 }
 
 const ID_FORMAT: vk::Format = vk::Format::R32_UINT;
@@ -112,10 +119,16 @@ impl ViewSamplePass {
             push_constant_bytes: std::mem::size_of::<ResolvePush>() as u32,
             specialization: &[],
         })?;
+        let mut triangles = BufferDesc::storage("view_triangles", 0);
+        triangles.usage |= vk::BufferUsageFlags::VERTEX_BUFFER;
         Ok(ViewSamplePass {
             raster,
             resolve,
             targets: None,
+            triangles: GrowBuffer::new(triangles),
+            ids: GrowBuffer::storage("view_sample_ids"),
+            samples: GrowBuffer::storage("view_samples"),
+            profiler: Profiler::new(ctx, 1)?,
         })
     }
 
@@ -137,17 +150,18 @@ impl ViewSamplePass {
     }
 
     /// Renders `triangles` (camera-relative [`GpuTriangle`]s, e.g. from
-    /// [`crate::gpu::hard_shadows::gpu_inputs`]; ids are indices into this
-    /// slice) seen by `camera` (its eye is the origin of the triangles) into
-    /// a new GPU buffer of `width × height` [`GpuViewSample`]s, and returns
-    /// it with the GPU milliseconds of the raster and resolve steps (NaN when
-    /// the device has no timestamps). Uploading the triangles is not timed.
+    /// [`crate::gpu::gpu_inputs`]; ids are indices into this slice) seen by
+    /// `camera` (its eye is the origin of the triangles) into the pass's
+    /// buffer of `width × height` [`GpuViewSample`]s (kept until the next
+    /// call), and returns it with the GPU milliseconds of the raster and
+    /// resolve steps (NaN when the device has no timestamps). Uploading the
+    /// triangles is not timed.
     pub fn render(
         &mut self,
         ctx: &GpuContext,
         camera: &Camera,
         triangles: &[GpuTriangle],
-    ) -> Result<(Buffer, f64)> {
+    ) -> Result<(&Buffer, f64)> {
         camera.validate()?;
         let (width, height) = (camera.width, camera.height);
         let pixels = width as u64 * height as u64;
@@ -194,18 +208,17 @@ impl ViewSamplePass {
             sizes: [width, height, nt, 0],
         };
 
-        let mut desc = BufferDesc::storage("view_triangles", 48 * nt.max(1) as u64);
-        desc.usage |= vk::BufferUsageFlags::VERTEX_BUFFER;
-        let tri_buf = ctx.create_buffer(desc)?;
-        if nt > 0 {
-            ctx.upload(&tri_buf, 0, triangles)?;
-        }
-        let ids_buf = ctx.create_buffer(BufferDesc::storage("view_sample_ids", 4 * pixels))?;
-        let out = ctx.create_buffer(BufferDesc::storage("view_samples", out_bytes))?;
-
         self.ensure_targets(ctx, [width, height])?;
+        let tri_buf = self.triangles.get(ctx, 48 * nt.max(1) as u64)?;
+        if nt > 0 {
+            ctx.upload(tri_buf, 0, triangles)?;
+        }
+        self.ids.get(ctx, 4 * pixels)?;
+        self.samples.get(ctx, out_bytes)?;
+        let (tri_buf, ids_buf) = (self.triangles.buffer(), self.ids.buffer());
         let targets = self.targets.as_ref().expect("made above");
-        let mut profiler = Profiler::new(ctx, 1)?;
+        let profiler = &mut self.profiler;
+        profiler.clear();
         let mut rec = ctx.begin()?;
         vertex_input_barrier(&mut rec);
         let scope = profiler.begin(&mut rec, "view_samples")?;
@@ -224,11 +237,11 @@ impl ViewSamplePass {
             &self.raster,
             &targets.framebuffer,
             &clear,
-            Some(&tri_buf),
+            Some(tri_buf),
             bytemuck::bytes_of(&raster_push),
             3 * nt,
         )?;
-        rec.copy_attachment_to_buffer(&targets.ids, 4, &ids_buf)?;
+        rec.copy_attachment_to_buffer(&targets.ids, 4, ids_buf)?;
         rec.barrier(Barrier::TransferToCompute);
         // A texel view may not be empty: with no triangles the one-triangle
         // buffer is bound (and never read: every id is 0).
@@ -239,9 +252,9 @@ impl ViewSamplePass {
         rec.dispatch(
             &self.resolve,
             &[
-                Binding::uniform_texel(&ids_buf, vk::Format::R32_UINT),
+                Binding::uniform_texel(self.ids.slice(), vk::Format::R32_UINT),
                 tri_binding,
-                Binding::storage(&out),
+                Binding::storage(&self.samples),
             ],
             bytemuck::bytes_of(&resolve_push),
             [width.div_ceil(8), height.div_ceil(8), 1],
@@ -250,7 +263,17 @@ impl ViewSamplePass {
         rec.barrier(Barrier::ComputeToCompute);
         ctx.submit_and_wait(rec)?;
         let ms = profiler.pass_ms("view_samples")?.unwrap_or(f64::NAN);
-        Ok((out, ms))
+        Ok((self.samples.buffer(), ms))
+    }
+}
+
+impl ViewSamplePass {
+    /// The view samples of the last [`ViewSamplePass::render`].
+    ///
+    /// # Panics
+    /// Before the first render.
+    pub fn samples(&self) -> &Buffer {
+        self.samples.buffer()
     }
 }
 

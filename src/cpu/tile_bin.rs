@@ -1,0 +1,91 @@
+//! CPU twin of the conservative rasterization's binning (`tile_bin.comp`,
+//! paper §3.2): every (caster, face) pair goes into the list of each tile
+//! of [`TILE`]² light texels that its texel rectangle and edge functions
+//! may touch, unless the tile holds no view sample.
+//!
+//! The GPU appends pairs to a tile's list in atomic order, so its lists
+//! equal the twin's as sets. [`crate::cpu::occlusion`] visits the touched
+//! texels directly, without tiles: a reference for the binning too.
+
+use super::casters::{square_overlaps, CasterFace};
+use crate::gpu::shared::GpuCasterFace;
+
+/// Texels per side of a rasterization tile (`TILE` in `shadow_common.glsl`).
+pub const TILE: u32 = 8;
+
+/// Whether texel (tx, ty) is touched by the pair's projection (conservative).
+pub fn texel_touched(cf: &CasterFace, tx: u32, ty: u32) -> bool {
+    match &cf.edges {
+        Some((e, m)) => square_overlaps(
+            e,
+            *m,
+            tx as f32,
+            ty as f32,
+            tx as f32 + 1.0,
+            ty as f32 + 1.0,
+        ),
+        None => true,
+    }
+}
+
+/// The tiles (x, y) of its face that the pair's rectangle and edges may
+/// touch: for each tile the rectangle meets, the part of the tile inside
+/// the rectangle against the edges.
+pub fn tiles_touched(cf: &CasterFace) -> Vec<(u32, u32)> {
+    let [x0, y0, x1, y1] = cf.rect;
+    let mut out = Vec::new();
+    for ty in y0 / TILE..=y1 / TILE {
+        for tx in x0 / TILE..=x1 / TILE {
+            let lo = [(tx * TILE).max(x0), (ty * TILE).max(y0)];
+            let hi = [
+                (tx * TILE + TILE - 1).min(x1) + 1,
+                (ty * TILE + TILE - 1).min(y1) + 1,
+            ];
+            let touched = match &cf.edges {
+                Some((e, m)) => square_overlaps(
+                    e,
+                    *m,
+                    lo[0] as f32,
+                    lo[1] as f32,
+                    hi[0] as f32,
+                    hi[1] as f32,
+                ),
+                None => true,
+            };
+            if touched {
+                out.push((tx, ty));
+            }
+        }
+    }
+    out
+}
+
+/// Per tile (index `face · tiles_per_row² + y · tiles_per_row + x`), the
+/// indices into `pairs` of the pairs binned there; `occupied[tile]`:
+/// whether the tile holds any view sample.
+pub fn bin_pairs(pairs: &[CasterFace], tiles_per_row: u32, occupied: &[bool]) -> Vec<Vec<u32>> {
+    let per_face = tiles_per_row * tiles_per_row;
+    let mut bins = vec![Vec::new(); occupied.len()];
+    for (i, cf) in pairs.iter().enumerate() {
+        for (tx, ty) in tiles_touched(cf) {
+            let tile = (cf.face * per_face + ty * tiles_per_row + tx) as usize;
+            if occupied[tile] {
+                bins[tile].push(i as u32);
+            }
+        }
+    }
+    bins
+}
+
+/// A pair as the GPU wrote it (`CasterFace` of `shadow_common.glsl`):
+/// the edges are valid when the x margin (`e0.w`) is not 0.
+pub fn caster_face_from_gpu(g: &GpuCasterFace) -> CasterFace {
+    let [triangle, face, min, max] = g.ids;
+    let e = |k: usize| [g.edges[k][0], g.edges[k][1], g.edges[k][2]];
+    CasterFace {
+        triangle,
+        face,
+        rect: [min & 0xffff, min >> 16, max & 0xffff, max >> 16],
+        edges: (g.edges[0][3] != 0.0).then(|| ([e(0), e(1), e(2)], [g.edges[0][3], g.edges[1][3]])),
+    }
+}

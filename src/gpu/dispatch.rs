@@ -1,0 +1,31 @@
+//! What the compute passes of a light's run share: workgroup counts, the
+//! texel format of the hot gathers and a binding shorthand.
+
+use crate::vulkan::{vk, Binding, BufferSlice};
+
+/// Workgroup size of the 1D passes (`WORKGROUP_1D` in `shadow_common.glsl`).
+pub const WG: u32 = 64;
+
+/// Texel format the hot gathers read (floats travel as bits): on lavapipe a
+/// texel-buffer fetch is ~10× faster than a storage-buffer load.
+pub const RGBA32UI: vk::Format = vk::Format::R32G32B32A32_UINT;
+
+/// Workgroups of [`WG`] invocations for `n` items, spread over y past the
+/// 65535 a dimension may hold.
+pub fn groups(n: u32) -> [u32; 3] {
+    groups_2d(n.div_ceil(WG))
+}
+
+/// `g` workgroups, spread over y past the 65535 a dimension may hold.
+pub fn groups_2d(g: u32) -> [u32; 3] {
+    if g <= 65535 {
+        [g, 1, 1]
+    } else {
+        [65535, g.div_ceil(65535), 1]
+    }
+}
+
+/// A storage-buffer binding.
+pub fn storage<'a>(b: impl Into<BufferSlice<'a>>) -> Binding<'a> {
+    Binding::storage(b)
+}

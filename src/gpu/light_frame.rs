@@ -1,0 +1,173 @@
+//! What one run of a light's passes works on: its inputs on the GPU
+//! ([`LightInputs`]), the sizes and push constants every pass shares
+//! ([`LightFrame`]) and the recording the passes record into
+//! ([`Recording`]).
+
+use crate::cpu::light_view::LightView;
+use crate::gpu::pass_clock::PassClock;
+use crate::gpu::shared::{LightPush, LIGHT_KIND_DIRECTIONAL, LIGHT_KIND_POINT};
+use crate::gpu::soft_light::SoftLight;
+use crate::vulkan::{BufferSlice, CommandRecorder, GpuContext};
+use crate::Result;
+
+/// Tile side in texels (`TILE` in `shadow_common.glsl`).
+pub const TILE: u32 = 8;
+
+/// A run's view samples and triangles, already on the GPU.
+#[derive(Clone, Copy)]
+pub struct LightInputs<'a> {
+    /// `n` [`GpuViewSample`](crate::gpu::shared::GpuViewSample)s (32 B each).
+    pub samples: BufferSlice<'a>,
+    pub n: u32,
+    /// `nt` [`GpuTriangle`](crate::gpu::shared::GpuTriangle)s (48 B each).
+    pub triangles: BufferSlice<'a>,
+    pub nt: u32,
+    /// The global id of triangle 0 (triangle batches): view samples name
+    /// their own triangle by global id.
+    pub triangle_base: u32,
+}
+
+/// The sizes of one run and the push constants of its passes.
+#[derive(Clone, Copy, Debug)]
+pub struct LightFrame {
+    /// Light faces (6 for a point light's cube, 1 for a directional light).
+    pub faces: u32,
+    /// Light texels per face side.
+    pub resolution: u32,
+    pub tiles_per_row: u32,
+    /// Light texels of all faces in tile-major order (`texel_index` in
+    /// `shadow_common.glsl`): every tile has 64, partial edge tiles too.
+    pub texels: u64,
+    pub tiles: u32,
+    /// (triangle, face) pairs caster setup may write.
+    pub pair_capacity: u32,
+    /// View samples and triangles.
+    pub n: u32,
+    pub nt: u32,
+    /// Mask words per view sample (4 per 128-sample block; 0: hard shadows).
+    pub mask_words: u64,
+    /// Push constants of every pass (`LightPush`); `more.w`, the occlusion
+    /// work units (read by the occlusion passes only), is set once the tiles
+    /// are counted.
+    pub push: LightPush,
+}
+
+impl LightFrame {
+    /// The frame of `inputs` lit by `light` over `resolution`² texels per
+    /// face, with `soft`'s samples for a light with extent.
+    pub fn new(
+        inputs: &LightInputs,
+        light: &LightView,
+        resolution: u32,
+        soft: Option<&SoftLight>,
+    ) -> Self {
+        let faces = light.face_count() as u32;
+        let tiles_per_row = resolution.div_ceil(TILE);
+        let tiles_per_face = tiles_per_row * tiles_per_row;
+        let (origin, kind, direction, (r, u)) = match light {
+            LightView::Point { position } => (
+                *position,
+                LIGHT_KIND_POINT,
+                glam::Vec3::ZERO,
+                (glam::Vec3::ZERO, glam::Vec3::ZERO),
+            ),
+            LightView::Directional { direction } => {
+                let (r, u, _) = light.basis(0);
+                (glam::Vec3::ZERO, LIGHT_KIND_DIRECTIONAL, *direction, (r, u))
+            }
+        };
+        let pair_capacity = inputs.nt.saturating_mul(faces);
+        let base = f32::from_bits(inputs.triangle_base);
+        let push = LightPush {
+            origin: [origin.x, origin.y, origin.z, f32::from_bits(kind)],
+            direction: [direction.x, direction.y, direction.z, 0.0],
+            sizes: [inputs.n, inputs.nt, resolution, faces],
+            more: [pair_capacity, tiles_per_row, tiles_per_face, 0],
+            dir_right: [r.x, r.y, r.z, 0.0],
+            dir_up: [u.x, u.y, u.z, 0.0],
+            soft: match soft {
+                Some(sl) => [
+                    0,
+                    sl.samples.len() as u32,
+                    sl.lut_resolution,
+                    u32::from(sl.exact),
+                ],
+                None => [0; 4],
+            },
+            soft_light: match soft {
+                Some(sl) => [sl.bounds().1, sl.polygon_degree as f32, base, 0.0],
+                None => [0.0, 0.0, base, 0.0],
+            },
+        };
+        LightFrame {
+            faces,
+            resolution,
+            tiles_per_row,
+            texels: faces as u64 * (tiles_per_row as u64 * TILE as u64).pow(2),
+            tiles: faces * tiles_per_face,
+            pair_capacity,
+            n: inputs.n,
+            nt: inputs.nt,
+            mask_words: soft.map_or(0, |sl| sl.mask_words() as u64),
+            push,
+        }
+    }
+
+    /// The occlusion work units (0 before the tiles are counted).
+    pub fn units(&self) -> u32 {
+        self.push.more[3]
+    }
+
+    /// Sets the occlusion work units.
+    pub fn set_units(&mut self, units: u32) {
+        self.push.more[3] = units;
+    }
+}
+
+/// One run being recorded: what every pass's `record` takes. Passes record
+/// into `cmd`, each timed by the clock as a named pass
+/// ([`Recording::pass`]); [`Recording::submit`] runs what is recorded and
+/// starts a new command buffer.
+pub struct Recording<'a> {
+    pub ctx: &'a GpuContext,
+    pub clock: &'a mut PassClock,
+    pub cmd: CommandRecorder,
+    pub inputs: LightInputs<'a>,
+    pub frame: LightFrame,
+}
+
+impl<'a> Recording<'a> {
+    /// Starts recording the run of `frame` over `inputs`.
+    pub fn new(
+        ctx: &'a GpuContext,
+        clock: &'a mut PassClock,
+        inputs: LightInputs<'a>,
+        frame: LightFrame,
+    ) -> Result<Self> {
+        Ok(Recording {
+            ctx,
+            clock,
+            cmd: ctx.begin()?,
+            inputs,
+            frame,
+        })
+    }
+
+    /// Records `f` as the pass `name` (with the frame's push constants).
+    pub fn pass(
+        &mut self,
+        name: &str,
+        f: impl FnOnce(&mut CommandRecorder, &[u8]) -> Result<()>,
+    ) -> Result<()> {
+        let push = self.frame.push;
+        self.clock.time(self.ctx, &mut self.cmd, name, |rec| {
+            f(rec, bytemuck::bytes_of(&push))
+        })
+    }
+
+    /// Submits what is recorded, waits for it, and starts a new command buffer.
+    pub fn submit(&mut self) -> Result<()> {
+        let done = std::mem::replace(&mut self.cmd, self.ctx.begin()?);
+        self.ctx.submit_and_wait(done)
+    }
+}

@@ -1,0 +1,268 @@
+//! One light's passes over one batch of view samples and triangles, in the
+//! order of the paper: [`LightPasses::run`] is the page to read against
+//! §3 (hard shadows) and §4 (soft shadows). Each pass lives in its own
+//! module with its shader family and its CPU twin of the same name in
+//! [`crate::cpu`]; the buffers each writes belong to it and live across
+//! frames ([`GrowBuffer`]), grown only when a frame needs more.
+
+use crate::cpu::light_view::LightView;
+use crate::gpu::casters::CasterPass;
+use crate::gpu::light_frame::Recording;
+use crate::gpu::light_frame::{LightFrame, LightInputs};
+use crate::gpu::light_view::LightViewPass;
+use crate::gpu::occlusion::OcclusionPass;
+use crate::gpu::pass_clock::PassClock;
+use crate::gpu::plane_lut::PlaneLutPass;
+use crate::gpu::resolve::ResolvePass;
+use crate::gpu::shared::counter;
+use crate::gpu::soft_light::SoftLight;
+use crate::gpu::soft_occlusion::SoftOcclusionPass;
+use crate::gpu::texel_lists::TexelListPass;
+use crate::gpu::tile_bin::TileBinPass;
+use crate::vulkan::{Allocations, Barrier, GpuContext, GrowBuffer, PassTiming};
+use crate::Result;
+
+/// What one run of a light's passes returns.
+#[derive(Clone, Debug)]
+pub struct ShadowOutput {
+    /// Per view sample: `None` when not evaluated (invalid, or facing away
+    /// from the light), else whether it is lit (hard shadows; for soft
+    /// shadows, whether no light sample was blocked is not tracked here).
+    pub lit: Vec<Option<bool>>,
+    /// The pass counters (indices in [`counter`]).
+    pub counters: [u32; counter::COUNT],
+    /// Per light texel, tile-major (`texel_index` in shadow_common.glsl):
+    /// list length. Split runs keep the batch with the longest list.
+    pub list_lengths: Vec<u32>,
+    /// Milliseconds per pass.
+    pub timings: Vec<PassTiming>,
+    /// Bytes of GPU buffers the run used.
+    pub buffer_bytes: u64,
+    /// Buffers and images the run created (none once its resources are
+    /// warm: a second frame of the same size reuses every one).
+    pub allocations: Allocations,
+    /// Soft shadows only.
+    pub soft: Option<SoftOutput>,
+}
+
+/// What a soft-shadow run returns besides the common output.
+#[derive(Clone, Debug)]
+pub struct SoftOutput {
+    /// Per view sample: visible fraction of the light samples, `None`
+    /// where not evaluated (invalid, or facing away from the whole light).
+    pub visibility: Vec<Option<f32>>,
+    /// Visible light samples per view sample, `mask_words` words each (bit
+    /// `j % 32` of word `j / 32` for light sample `j`).
+    pub visible: Vec<u32>,
+    /// Words per view sample in `visible` (4 per 128-sample block).
+    pub mask_words: usize,
+    /// Whether this run built the plane look-up texture (`lut_build` in the
+    /// timings); false in exact mode and when the last one was reused.
+    pub lut_built: bool,
+}
+
+/// How a run ended.
+pub enum Ran {
+    Done(Box<ShadowOutput>),
+    /// The binned pairs (4 B each) pass the device's binding limit: the
+    /// triangles must run in smaller batches.
+    TooManyPairs {
+        binned_bytes: u64,
+    },
+}
+
+/// Every pass of a light, made once; their buffers live across frames.
+pub struct LightPasses {
+    pub light_view: LightViewPass,
+    pub texel_lists: TexelListPass,
+    pub casters: CasterPass,
+    pub tile_bin: TileBinPass,
+    pub occlusion: OcclusionPass,
+    pub plane_lut: PlaneLutPass,
+    pub soft_occlusion: SoftOcclusionPass,
+    pub resolve: ResolvePass,
+    /// The passes' counters (`COUNTER_*`).
+    pub counters: GrowBuffer,
+    pub clock: PassClock,
+}
+
+impl LightPasses {
+    /// Builds every pipeline; no buffer is made before the first run.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        Ok(LightPasses {
+            light_view: LightViewPass::new(ctx)?,
+            texel_lists: TexelListPass::new(ctx)?,
+            casters: CasterPass::new(ctx)?,
+            tile_bin: TileBinPass::new(ctx)?,
+            occlusion: OcclusionPass::new(ctx)?,
+            plane_lut: PlaneLutPass::new(ctx)?,
+            soft_occlusion: SoftOcclusionPass::new(ctx)?,
+            resolve: ResolvePass::new(ctx)?,
+            counters: GrowBuffer::storage("counters"),
+            clock: PassClock::new(ctx)?,
+        })
+    }
+
+    /// The passes of `light` over `inputs`, in order; with `soft`, the same
+    /// passes compute soft shadows of that light seen from its samples'
+    /// centre: influence regions instead of projections, light-sample
+    /// bitmasks instead of one bit.
+    pub fn run(
+        &mut self,
+        ctx: &GpuContext,
+        inputs: &LightInputs,
+        light: &LightView,
+        resolution: u32,
+        soft: Option<&SoftLight>,
+    ) -> Result<Ran> {
+        let before = ctx.allocations();
+        let frame = LightFrame::new(inputs, light, resolution, soft);
+        self.clock.restart(ctx);
+        // §4.2: the plane look-up texture, built once per light shape.
+        let lut_built = match soft.filter(|sl| !sl.exact) {
+            Some(sl) => self.plane_lut.ensure(ctx, &mut self.clock, sl)?,
+            None => false,
+        };
+        self.prepare(ctx, &frame, soft)?;
+        let r = &mut Recording::new(ctx, &mut self.clock, *inputs, frame)?;
+        r.cmd.fill_buffer(self.counters.slice(), 0)?;
+        self.texel_lists.record_clears(&mut r.cmd)?;
+        self.tile_bin.record_clears(&mut r.cmd)?;
+        r.cmd.barrier(Barrier::TransferToCompute);
+        let counters = &self.counters;
+
+        // §4.3: the light's frusta fitted to the view samples; §3.1: the
+        // per-light-texel lists of view samples (count, scan, scatter).
+        self.light_view.record(r)?;
+        self.texel_lists.record(r, &self.light_view.faces)?;
+        // §3.3, §4.1: each caster's planes and its projection or influence
+        // region; §3.2: conservatively rasterized, binned per tile.
+        self.casters.record(r, &self.light_view.faces, counters)?;
+        let (casters, lists) = (&self.casters, &self.texel_lists);
+        self.tile_bin
+            .record_count(r, casters, lists, counters, soft.is_some())?;
+        r.submit()?;
+        // Only now is the number of binned pairs known: past the binding
+        // limit, the triangles run again in smaller batches.
+        let totals = self.tile_bin.totals(ctx, &frame)?;
+        let binned_bytes = 4 * totals.pairs as u64;
+        if binned_bytes > ctx.info().limits.max_storage_buffer_range as u64 && frame.nt > 1 {
+            return Ok(Ran::TooManyPairs { binned_bytes });
+        }
+        self.tile_bin
+            .record_scatter(r, totals, casters, lists, counters)?;
+        r.frame.set_units(totals.units);
+
+        // §3.3, §4.2: every listed view sample against its tile's casters:
+        // one bit, or a light-sample bitmask ORed over the casters; then
+        // visibility = visible light samples / light samples.
+        let passes = (lists, casters, &self.tile_bin);
+        match soft {
+            None => {
+                self.occlusion.record(r, passes, counters)?;
+                self.resolve
+                    .record_hard(r, lists, &self.occlusion.shadowed)?;
+            }
+            Some(sl) => {
+                let table = self.plane_lut.table();
+                self.soft_occlusion.record(r, sl, table, passes, counters)?;
+                self.resolve.record_soft(r, lists, &self.soft_occlusion)?;
+            }
+        }
+        r.submit()?;
+        ctx.check_validation()?;
+        let mut out = self.read_output(ctx, &frame, inputs, soft, lut_built)?;
+        out.allocations = ctx.allocations() - before;
+        Ok(Ran::Done(Box::new(out)))
+    }
+
+    /// Sizes every pass's buffers for `frame` (uploads the fit keys and the
+    /// light samples).
+    fn prepare(
+        &mut self,
+        ctx: &GpuContext,
+        frame: &LightFrame,
+        soft: Option<&SoftLight>,
+    ) -> Result<()> {
+        self.counters.get(ctx, 4 * counter::COUNT as u64)?;
+        self.light_view.prepare(ctx)?;
+        self.texel_lists.prepare(ctx, frame)?;
+        self.casters.prepare(ctx, frame)?;
+        self.tile_bin.prepare(ctx, frame)?;
+        self.resolve.prepare(ctx, frame)?;
+        if let Some(sl) = soft {
+            self.soft_occlusion.prepare(ctx, frame, sl)?;
+        }
+        Ok(())
+    }
+
+    /// Reads the results, counters and list lengths back.
+    fn read_output(
+        &self,
+        ctx: &GpuContext,
+        frame: &LightFrame,
+        inputs: &LightInputs,
+        soft: Option<&SoftLight>,
+        lut_built: bool,
+    ) -> Result<ShadowOutput> {
+        let n = frame.n as usize;
+        let result: Vec<u32> = ctx.read_buffer_staged(self.resolve.result.buffer(), 0, n)?;
+        let soft_out = match soft {
+            Some(_) => {
+                let words = frame.mask_words as usize;
+                let visible = if words > 0 && n > 0 {
+                    ctx.read_buffer_staged(self.resolve.visible.buffer(), 0, words * n)?
+                } else {
+                    Vec::new()
+                };
+                let visibility = result
+                    .iter()
+                    .map(|&r| {
+                        let v = f32::from_bits(r);
+                        (v >= 0.0).then_some(v)
+                    })
+                    .collect();
+                Some(SoftOutput {
+                    visibility,
+                    visible,
+                    mask_words: words,
+                    lut_built,
+                })
+            }
+            None => None,
+        };
+        let c: Vec<u32> = ctx.read_buffer_staged(self.counters.buffer(), 0, counter::COUNT)?;
+        let list_lengths: Vec<u32> =
+            ctx.read_buffer_staged(self.texel_lists.counts.buffer(), 0, frame.texels as usize)?;
+        let mut counters = [0u32; counter::COUNT];
+        counters.copy_from_slice(&c);
+        let mut buffer_bytes = inputs.samples.size
+            + inputs.triangles.size
+            + self.counters.len()
+            + self.light_view.bytes()
+            + self.texel_lists.bytes()
+            + self.casters.bytes()
+            + self.tile_bin.bytes()
+            + self.resolve.result.len();
+        if let Some(sl) = soft {
+            buffer_bytes += self.soft_occlusion.blocked.len() + self.resolve.visible.len();
+            if !sl.exact {
+                buffer_bytes += self.plane_lut.table().map_or(0, |t| t.size());
+            }
+        } else {
+            buffer_bytes += self.occlusion.shadowed.len();
+        }
+        Ok(ShadowOutput {
+            lit: result
+                .iter()
+                .map(|&r| (r & 2 != 0).then_some(r & 1 != 0))
+                .collect(),
+            counters,
+            list_lengths,
+            timings: self.clock.results()?,
+            buffer_bytes,
+            allocations: Allocations::default(),
+            soft: soft_out,
+        })
+    }
+}

@@ -1,0 +1,195 @@
+//! The shadow passes of a frame after the view samples, for one light at a
+//! time, hard (paper §3) or soft (§4): [`ShadowPipeline`] checks its inputs,
+//! splits runs too large for one binding into [`batches`](crate::gpu::batches)
+//! and runs [`LightPasses::run`], the passes in order.
+
+use crate::cpu::light_view::LightView;
+use crate::gpu::batches::{Batches, RunOf};
+use crate::gpu::light_frame::LightInputs;
+use crate::gpu::light_passes::{LightPasses, ShadowOutput};
+use crate::gpu::shared::{GpuTriangle, GpuViewSample};
+use crate::gpu::soft_light::SoftLight;
+use crate::vulkan::{Buffer, GpuContext, GrowBuffer};
+use crate::{Error, Result};
+
+/// The shadow passes of every light: pipelines made once, buffers kept and
+/// grown across frames (a second frame of the same size allocates nothing).
+pub struct ShadowPipeline {
+    passes: LightPasses,
+    batches: Batches,
+    /// View samples and triangles uploaded by [`ShadowPipeline::run`].
+    uploaded_samples: GrowBuffer,
+    uploaded_triangles: GrowBuffer,
+}
+
+impl ShadowPipeline {
+    /// Builds every pipeline.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        Ok(ShadowPipeline {
+            passes: LightPasses::new(ctx)?,
+            batches: Batches::new(),
+            uploaded_samples: GrowBuffer::storage("view_samples"),
+            uploaded_triangles: GrowBuffer::storage("triangles"),
+        })
+    }
+
+    /// Shadows of `view_samples` (camera-relative) from `light` with the
+    /// scene's `triangles` over `resolution`² light texels per face: uploads
+    /// both, then [`ShadowPipeline::run_on`].
+    pub fn run(
+        &mut self,
+        ctx: &GpuContext,
+        view_samples: &[GpuViewSample],
+        triangles: &[GpuTriangle],
+        light: &LightView,
+        resolution: u32,
+        soft: Option<&SoftLight>,
+    ) -> Result<ShadowOutput> {
+        let samples = self
+            .uploaded_samples
+            .get(ctx, 32 * view_samples.len() as u64)?;
+        ctx.upload_staged(samples, 0, view_samples)?;
+        let tris = self
+            .uploaded_triangles
+            .get(ctx, 48 * triangles.len() as u64)?;
+        ctx.upload_staged(tris, 0, triangles)?;
+        let inputs = LightInputs {
+            samples: self.uploaded_samples.slice(),
+            n: count(view_samples.len(), "view samples")?,
+            triangles: self.uploaded_triangles.slice(),
+            nt: count(triangles.len(), "triangles")?,
+            triangle_base: 0,
+        };
+        run_checked(
+            &mut self.passes,
+            &mut self.batches,
+            ctx,
+            &inputs,
+            light,
+            resolution,
+            soft,
+        )
+    }
+
+    /// [`ShadowPipeline::run`] on view samples and triangles already on the
+    /// GPU (e.g. the view-sample pass's output): `n` samples, `nt` triangles.
+    /// With `soft`, the same passes compute soft shadows of that light, seen
+    /// from `light` (a point light at the samples' centre; see
+    /// [`SoftLight::bounds`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn run_on(
+        &mut self,
+        ctx: &GpuContext,
+        samples: &Buffer,
+        n: usize,
+        triangles: &Buffer,
+        nt: usize,
+        light: &LightView,
+        resolution: u32,
+        soft: Option<&SoftLight>,
+    ) -> Result<ShadowOutput> {
+        let inputs = LightInputs {
+            samples: samples.whole(),
+            n: count(n, "view samples")?,
+            triangles: triangles.whole(),
+            nt: count(nt, "triangles")?,
+            triangle_base: 0,
+        };
+        run_checked(
+            &mut self.passes,
+            &mut self.batches,
+            ctx,
+            &inputs,
+            light,
+            resolution,
+            soft,
+        )
+    }
+
+    /// The plane look-up texture of `light` as the GPU builds it (for the
+    /// CPU twin's test; [`crate::cpu::plane_lut::build_lut`]).
+    pub fn plane_lut_bits(&mut self, ctx: &GpuContext, light: &SoftLight) -> Result<Vec<[u32; 4]>> {
+        let passes = &mut self.passes;
+        passes.plane_lut.bits(ctx, &mut passes.clock, light)
+    }
+
+    /// Limits the view samples per run (tests: forces the batched path that
+    /// large runs take); `None` lifts the limit.
+    pub fn set_batch_limit(&mut self, limit: Option<usize>) {
+        self.batches.view_sample_limit = limit;
+    }
+
+    /// Limits the triangles per run (tests: forces the batched path that
+    /// scenes of millions of triangles take); `None` lifts the limit.
+    pub fn set_triangle_batch_limit(&mut self, limit: Option<usize>) {
+        self.batches.triangle_limit = limit;
+    }
+
+    /// The passes and the buffers they kept from the last run (for the
+    /// tests that compare a pass's buffers with its CPU twin).
+    pub fn passes(&self) -> &LightPasses {
+        &self.passes
+    }
+}
+
+fn count(n: usize, what: &str) -> Result<u32> {
+    u32::try_from(n).map_err(|_| Error::InvalidInput(format!("too many {what}")))
+}
+
+/// Checks the run's inputs, then runs it in batches as needed.
+fn run_checked(
+    passes: &mut LightPasses,
+    batches: &mut Batches,
+    ctx: &GpuContext,
+    inputs: &LightInputs,
+    light: &LightView,
+    resolution: u32,
+    soft: Option<&SoftLight>,
+) -> Result<ShadowOutput> {
+    if let Some(sl) = soft {
+        sl.validate()?;
+        if !matches!(light, LightView::Point { .. }) {
+            return Err(Error::InvalidInput(
+                "soft shadows are seen from a point (the light's centre)".into(),
+            ));
+        }
+    }
+    if resolution == 0 || resolution > 16384 {
+        return Err(Error::InvalidInput(format!(
+            "light_texels must be in 1..=16384, got {resolution}"
+        )));
+    }
+    let frame = crate::gpu::light_frame::LightFrame::new(inputs, light, resolution, soft);
+    passes.texel_lists.check(&frame)?;
+    if inputs.samples.size < 32 * inputs.n as u64 || inputs.triangles.size < 48 * inputs.nt as u64 {
+        return Err(Error::InvalidInput(
+            "view-sample or triangle buffer smaller than its count".into(),
+        ));
+    }
+    let of = RunOf {
+        light,
+        resolution,
+        soft,
+    };
+    batches.run(passes, ctx, inputs, of)
+}
+
+/// Camera-relative GPU view samples and triangles from CPU data.
+pub fn gpu_inputs(
+    samples: &[Option<(glam::Vec3, glam::Vec3, u32)>],
+    triangles: &[([glam::Vec3; 3], bool)],
+) -> (Vec<GpuViewSample>, Vec<GpuTriangle>) {
+    use crate::gpu::shared::{TRIANGLE_CLOSED, VIEW_SAMPLE_VALID};
+    let vs = samples
+        .iter()
+        .map(|s| match s {
+            Some((p, n, t)) => GpuViewSample::new(*p, *t, *n, VIEW_SAMPLE_VALID),
+            None => GpuViewSample::default(),
+        })
+        .collect();
+    let ts = triangles
+        .iter()
+        .map(|(v, closed)| GpuTriangle::new(*v, if *closed { TRIANGLE_CLOSED } else { 0 }, 0))
+        .collect();
+    (vs, ts)
+}

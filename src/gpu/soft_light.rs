@@ -1,0 +1,82 @@
+//! A light with extent as the soft-shadow passes see it (paper §4): its
+//! samples, camera-relative, and how the planes are evaluated.
+
+/// Maximum number of light samples (`MAX_LIGHT_SAMPLES` in soft_common.glsl).
+pub const MAX_SOFT_SAMPLES: usize = 1024;
+
+/// A light with extent as the soft-shadow passes see it.
+#[derive(Clone, Debug)]
+pub struct SoftLight {
+    /// 1 to 1024 light samples, camera-relative.
+    pub samples: Vec<glam::Vec3>,
+    /// Test every light sample against the planes instead of looking the
+    /// planes up (`mode = "exact"`).
+    pub exact: bool,
+    /// Plane look-up texture resolution (`lut_resolution`³ texels per block).
+    pub lut_resolution: u32,
+    /// Corners of the polygon that bounds the light's silhouette in the
+    /// influence regions (6: a hexagon).
+    pub polygon_degree: u32,
+}
+
+impl SoftLight {
+    /// The centre and bounding radius of the samples (their bounding box's
+    /// centre and the largest distance to it, rounded up).
+    pub fn bounds(&self) -> (glam::Vec3, f32) {
+        let lo = self
+            .samples
+            .iter()
+            .fold(glam::Vec3::splat(f32::INFINITY), |a, &b| a.min(b));
+        let hi = self
+            .samples
+            .iter()
+            .fold(glam::Vec3::splat(f32::NEG_INFINITY), |a, &b| a.max(b));
+        let c = (lo + hi) * 0.5;
+        let r = self
+            .samples
+            .iter()
+            .map(|s| s.distance(c))
+            .fold(0.0f32, f32::max);
+        // Rounded up, and never 0 (one sample): every |y| stays <= 1.
+        let scale = c.abs().max_element().max(hi.abs().max_element()).max(1e-30);
+        (c, (r * (1.0 + 1e-5)).max(scale * 1e-6))
+    }
+
+    /// 128-sample blocks of the light.
+    pub fn blocks(&self) -> usize {
+        self.samples.len().div_ceil(128)
+    }
+
+    /// Mask words per view sample (4 per block).
+    pub fn mask_words(&self) -> usize {
+        4 * self.blocks()
+    }
+
+    /// The checks the passes need: 1 to [`MAX_SOFT_SAMPLES`] finite samples,
+    /// a polygon of 3 to 64 corners, a look-up resolution in 2..=512.
+    pub fn validate(&self) -> crate::Result<()> {
+        use crate::Error::InvalidInput;
+        if self.samples.is_empty() || self.samples.len() > MAX_SOFT_SAMPLES {
+            return Err(InvalidInput(format!(
+                "soft shadows take 1 to {MAX_SOFT_SAMPLES} light samples, got {}",
+                self.samples.len()
+            )));
+        }
+        if !self.samples.iter().all(|s| s.is_finite()) {
+            return Err(InvalidInput("a light sample is not finite".into()));
+        }
+        if !(3..=64).contains(&self.polygon_degree) {
+            return Err(InvalidInput(format!(
+                "the influence polygon needs 3 to 64 corners, got {}",
+                self.polygon_degree
+            )));
+        }
+        if !self.exact && !(2..=512).contains(&self.lut_resolution) {
+            return Err(InvalidInput(format!(
+                "lut_resolution must be in 2..=512, got {}",
+                self.lut_resolution
+            )));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,206 @@
+//! Conservative rasterization of the casters over the light texels (paper
+//! §3.2), binned per tile of [`TILE`]² texels: `tile_bin.comp` counts the
+//! tiles each (caster, face) pair's rectangle and edges may touch, a scan
+//! gives each tile's offset, and the same shader scatters the pairs into
+//! per-tile lists. `tile_bin_units.comp` sizes each tile's occlusion work
+//! units (chunks of its pairs times chunks of its listed samples, so that no
+//! invocation loops past lavapipe's 65,535 iterations), scanned too.
+//! CPU twin: [`crate::cpu::tile_bin`].
+//!
+//! [`TILE`]: crate::gpu::light_frame::TILE
+
+use crate::gpu::dispatch::{groups, storage};
+use crate::gpu::light_frame::LightFrame;
+use crate::gpu::light_frame::Recording;
+use crate::gpu::scan::ScanPass;
+use crate::gpu::shaders;
+use crate::gpu::shared::LightPush;
+use crate::gpu::{casters::CasterPass, texel_lists::TexelListPass};
+use crate::vulkan::{
+    Barrier, CommandRecorder, ComputePipeline, ComputePipelineDesc, DescriptorKind, GpuContext,
+    GrowBuffer,
+};
+use crate::Result;
+
+/// Pairs per soft occlusion work unit (specialization constant 2,
+/// `OCC_PAIR_CHUNK`): each lane has one sample, and in exact mode each test
+/// loops over 128 light samples, so 256 · 129 stays below lavapipe's 65535
+/// loop iterations per invocation.
+pub const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
+
+/// The binning passes' pipelines and the per-tile lists they build.
+pub struct TileBinPass {
+    count: ComputePipeline,
+    scatter: ComputePipeline,
+    /// Hard shadows' work units: chunks of the tile's longest texel list.
+    units_hard: ComputePipeline,
+    /// Soft shadows' work units: one lane per listed sample of the tile.
+    units_soft: ComputePipeline,
+    scan: ScanPass,
+    /// Per tile: binned pairs (count, then scatter cursor).
+    tile_counts: GrowBuffer,
+    /// Per tile: offset of its pairs in `tile_pairs`; `[tiles]` = total.
+    pub tile_offsets: GrowBuffer,
+    /// Per tile: occlusion work units.
+    tile_units: GrowBuffer,
+    /// Per tile: its first work unit; `[tiles]` = total.
+    pub unit_offsets: GrowBuffer,
+    /// The binned pair indices, tile by tile.
+    pub tile_pairs: GrowBuffer,
+}
+
+/// What the count found: the binned pairs and the occlusion work units.
+#[derive(Clone, Copy, Debug)]
+pub struct BinTotals {
+    pub pairs: u32,
+    pub units: u32,
+}
+
+impl TileBinPass {
+    /// Builds the pipelines.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let sb = DescriptorKind::StorageBuffer;
+        let make = |name, spirv, bindings: &[DescriptorKind], spec: &[(u32, u32)]| {
+            ctx.create_compute_pipeline(&ComputePipelineDesc {
+                name,
+                spirv,
+                bindings,
+                push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
+                specialization: spec,
+            })
+        };
+        Ok(TileBinPass {
+            count: make("tile_bin_count", shaders::TILE_BIN, &[sb; 6], &[(1, 0)])?,
+            scatter: make("tile_bin_scatter", shaders::TILE_BIN, &[sb; 6], &[(1, 1)])?,
+            units_hard: make("tile_bin_units", shaders::TILE_BIN_UNITS, &[sb; 3], &[])?,
+            units_soft: make(
+                "tile_bin_units_soft",
+                shaders::TILE_BIN_UNITS_SAMPLE_LANES,
+                &[sb; 3],
+                &[SOFT_PAIR_CHUNK],
+            )?,
+            scan: ScanPass::new(ctx)?,
+            tile_counts: GrowBuffer::storage("tile_counts"),
+            tile_offsets: GrowBuffer::storage("tile_offsets"),
+            tile_units: GrowBuffer::storage("tile_units"),
+            unit_offsets: GrowBuffer::storage("unit_offsets"),
+            tile_pairs: GrowBuffer::storage("tile_pairs"),
+        })
+    }
+
+    /// Sizes the per-tile buffers (`tile_pairs` is sized by the count).
+    pub fn prepare(&mut self, ctx: &GpuContext, frame: &LightFrame) -> Result<()> {
+        let tiles = frame.tiles as u64;
+        self.tile_counts.get(ctx, 4 * tiles)?;
+        self.tile_offsets.get(ctx, 4 * (tiles + 1))?;
+        self.tile_units.get(ctx, 4 * tiles)?;
+        self.unit_offsets.get(ctx, 4 * (tiles + 1))?;
+        Ok(())
+    }
+
+    /// Records the clears this pass needs before the run's first pass.
+    pub fn record_clears(&self, rec: &mut CommandRecorder) -> Result<()> {
+        rec.fill_buffer(self.tile_counts.slice(), 0)
+    }
+
+    /// Records the count of pairs per tile (of the `casters`' pairs, over
+    /// the tiles the `lists` occupy) and of work units per tile (soft: one
+    /// lane per listed sample; hard: chunks of the tile's longest list), and
+    /// both scans; ends with a barrier to the host, which reads the totals.
+    pub fn record_count(
+        &mut self,
+        r: &mut Recording,
+        casters: &CasterPass,
+        lists: &TexelListPass,
+        counters: &GrowBuffer,
+        soft: bool,
+    ) -> Result<()> {
+        let (pair_capacity, tiles) = (r.frame.pair_capacity, r.frame.tiles);
+        r.pass("tile_bin_count", |rec, pc| {
+            let bindings = [
+                storage(&casters.pairs),
+                storage(counters),
+                storage(&self.tile_counts),
+                storage(&self.tile_offsets),
+                storage(&self.tile_offsets),
+                storage(&lists.tile_max_len),
+            ];
+            rec.dispatch(&self.count, &bindings, pc, groups(pair_capacity))?;
+            rec.barrier(Barrier::ComputeToCompute);
+            let (units, per_tile) = if soft {
+                (&self.units_soft, &lists.offsets)
+            } else {
+                (&self.units_hard, &lists.tile_max_len)
+            };
+            let bindings = [
+                storage(&self.tile_counts),
+                storage(per_tile),
+                storage(&self.tile_units),
+            ];
+            rec.dispatch(units, &bindings, pc, groups(tiles))
+        })?;
+        let scan = &mut self.scan;
+        let (tile_counts, tile_offsets) = (&self.tile_counts, &self.tile_offsets);
+        let (tile_units, unit_offsets) = (&self.tile_units, &self.unit_offsets);
+        r.pass("tile_scan", |rec, _| {
+            scan.record(rec, tile_counts.slice(), tile_offsets.slice(), tiles)?;
+            scan.record(rec, tile_units.slice(), unit_offsets.slice(), tiles)?;
+            rec.barrier(Barrier::ComputeToHost);
+            Ok(())
+        })
+    }
+
+    /// The totals the count found (after its submission was waited for).
+    pub fn totals(&self, ctx: &GpuContext, frame: &LightFrame) -> Result<BinTotals> {
+        let at = 4 * frame.tiles as u64;
+        let pairs: Vec<u32> = ctx.read_buffer_staged(self.tile_offsets.buffer(), at, 1)?;
+        let units: Vec<u32> = ctx.read_buffer_staged(self.unit_offsets.buffer(), at, 1)?;
+        Ok(BinTotals {
+            pairs: pairs[0],
+            units: units[0],
+        })
+    }
+
+    /// Records the scatter of the pairs into their tiles' lists, sized to
+    /// the `totals` the count found.
+    pub fn record_scatter(
+        &mut self,
+        r: &mut Recording,
+        totals: BinTotals,
+        casters: &CasterPass,
+        lists: &TexelListPass,
+        counters: &GrowBuffer,
+    ) -> Result<()> {
+        self.tile_pairs.get(r.ctx, 4 * totals.pairs as u64)?;
+        r.cmd.fill_buffer(self.tile_counts.slice(), 0)?;
+        r.cmd.barrier(Barrier::TransferToCompute);
+        let pair_capacity = r.frame.pair_capacity;
+        r.pass("tile_bin_scatter", |rec, pc| {
+            let bindings = [
+                storage(&casters.pairs),
+                storage(counters),
+                storage(&self.tile_counts),
+                storage(&self.tile_offsets),
+                storage(&self.tile_pairs),
+                storage(&lists.tile_max_len),
+            ];
+            rec.dispatch(&self.scatter, &bindings, pc, groups(pair_capacity))?;
+            rec.barrier(Barrier::ComputeToCompute);
+            Ok(())
+        })
+    }
+
+    /// Bytes this run binds.
+    pub fn bytes(&self) -> u64 {
+        [
+            &self.tile_counts,
+            &self.tile_offsets,
+            &self.tile_units,
+            &self.unit_offsets,
+            &self.tile_pairs,
+        ]
+        .iter()
+        .map(|b| b.len())
+        .sum()
+    }
+}

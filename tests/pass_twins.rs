@@ -1,0 +1,251 @@
+//! Each GPU pass's buffers after a run, against its CPU twin in the module
+//! of the same name, fed the same inputs (the GPU's own outputs of the
+//! passes before it): the light view's windows (`cpu::light_view`), the
+//! texel lists' counts and texels (`cpu::texel_lists`), the tile bins
+//! (`cpu::tile_bin`), the hard resolve and the soft resolve
+//! (`cpu::resolve`). The passes keep their buffers across frames, so the
+//! test reads them where the run left them.
+
+use alias_free_shadows::cpu::light_view::{fit_windows, LightView};
+use alias_free_shadows::cpu::resolve::{resolve_hard, resolve_soft};
+use alias_free_shadows::cpu::texel_lists::{build_texel_lists, NOT_LISTED};
+use alias_free_shadows::cpu::tile_bin::{bin_pairs, caster_face_from_gpu, TILE};
+use alias_free_shadows::gpu::shared::{counter, GpuCasterFace, GpuLightFace, GpuViewSample};
+use alias_free_shadows::gpu::{gpu_inputs, ShadowPipeline, SoftLight};
+use alias_free_shadows::oracle::Oracle;
+use alias_free_shadows::render;
+use alias_free_shadows::scene::file::{self, ShadowSettings, SoftMode};
+use alias_free_shadows::vulkan::{ContextOptions, GpuContext, GrowBuffer};
+use glam::Vec3;
+
+mod common;
+
+/// A scene's view samples (the oracle's primary hits, camera-relative
+/// f32) with their triangles, and the scene's triangles in GPU form.
+struct Inputs {
+    samples: Vec<Option<(Vec3, Vec3)>>,
+    gpu_samples: Vec<GpuViewSample>,
+    gpu_triangles: Vec<alias_free_shadows::gpu::shared::GpuTriangle>,
+    desc: file::SceneDescription,
+}
+
+fn inputs(spec: &str, size: u32) -> Inputs {
+    let mut desc = file::load(spec).unwrap();
+    desc.camera.width = size;
+    desc.camera.height = size;
+    let eye = desc.camera.eye;
+    let oracle = Oracle::new(&desc.scene.triangles(), eye);
+    let view = common::engine_view_samples(&oracle, &desc);
+    let with_ids: Vec<_> = view
+        .samples
+        .iter()
+        .map(|s| s.map(|s| ((s.position - eye).as_vec3(), s.normal.as_vec3(), s.triangle)))
+        .collect();
+    let (gpu_samples, gpu_triangles) =
+        gpu_inputs(&with_ids, &render::gpu_triangles(&desc.scene, eye));
+    Inputs {
+        samples: with_ids.iter().map(|s| s.map(|(p, n, _)| (p, n))).collect(),
+        gpu_samples,
+        gpu_triangles,
+        desc,
+    }
+}
+
+fn read<T: bytemuck::Pod>(ctx: &GpuContext, b: &GrowBuffer, count: usize) -> Vec<T> {
+    ctx.read_buffer_staged(b.buffer(), 0, count).unwrap()
+}
+
+/// The tile-major list index of texel (tx, ty) of `face` (`texel_index` in
+/// shadow_common.glsl).
+fn tile_major(face: u32, tx: u32, ty: u32, tiles_per_row: u32) -> usize {
+    let tile = face * tiles_per_row * tiles_per_row + (ty / TILE) * tiles_per_row + tx / TILE;
+    ((tile * TILE + ty % TILE) * TILE + tx % TILE) as usize
+}
+
+/// The light view, texel lists, tile bins and resolve of the last run
+/// against their twins (hard shadows of `light`).
+fn check_hard_passes(
+    ctx: &GpuContext,
+    pipeline: &ShadowPipeline,
+    inp: &Inputs,
+    light: &LightView,
+    res: u32,
+) {
+    let passes = pipeline.passes();
+    let faces = light.face_count();
+    let listed: Vec<(Vec3, Vec3)> = inp.samples.iter().flatten().copied().collect();
+
+    // Light view: every face's window, bit for bit.
+    let windows = fit_windows(light, &listed, res);
+    let gpu_faces: Vec<GpuLightFace> = read(ctx, &passes.light_view.faces, 6);
+    for (f, w) in windows.iter().enumerate() {
+        let g = &gpu_faces[f];
+        assert_eq!(g.right[3] == 1.0, w.valid, "face {f}: validity");
+        if w.valid {
+            assert_eq!(
+                [g.window[0], g.window[1], g.window[2], g.window[3], g.far[0]].map(f32::to_bits),
+                [w.x0, w.y0, w.sx, w.sy, w.z_far].map(f32::to_bits),
+                "face {f}: window"
+            );
+        }
+    }
+
+    // Texel lists: every texel's count and every sample's texel.
+    let lists = build_texel_lists(light, &windows, &inp.samples, res);
+    let tpr = res.div_ceil(TILE);
+    let texels = faces * (tpr * TILE * tpr * TILE) as usize;
+    let counts: Vec<u32> = read(ctx, &passes.texel_lists.counts, texels);
+    for f in 0..faces as u32 {
+        for ty in 0..res {
+            for tx in 0..res {
+                let cpu = lists.counts[(f * res * res + ty * res + tx) as usize];
+                assert_eq!(
+                    counts[tile_major(f, tx, ty, tpr)],
+                    cpu,
+                    "texel ({f}, {tx}, {ty})"
+                );
+            }
+        }
+    }
+    let n = inp.samples.len();
+    let sample_texel: Vec<u32> = read(ctx, &passes.texel_lists.sample_texel, n);
+    for (i, (&g, &c)) in sample_texel.iter().zip(&lists.sample_texel).enumerate() {
+        let want = match c {
+            NOT_LISTED => NOT_LISTED,
+            t => {
+                let (f, rest) = (t / (res * res), t % (res * res));
+                tile_major(f, rest % res, rest / res, tpr) as u32
+            }
+        };
+        assert_eq!(g, want, "sample {i}: texel");
+    }
+
+    // Tile bins: the GPU's pairs binned by the twin, per tile as sets.
+    let c: Vec<u32> = read(ctx, &passes.counters, counter::COUNT);
+    let pair_count = c[counter::PAIRS] as usize;
+    let gpu_pairs: Vec<GpuCasterFace> = read(ctx, &passes.casters.pairs, pair_count);
+    let pairs: Vec<_> = gpu_pairs.iter().map(caster_face_from_gpu).collect();
+    let tiles = faces * (tpr * tpr) as usize;
+    let occupied: Vec<bool> = (0..tiles)
+        .map(|t| counts[t * 64..(t + 1) * 64].iter().any(|&c| c > 0))
+        .collect();
+    let bins = bin_pairs(&pairs, tpr, &occupied);
+    let offsets: Vec<u32> = read(ctx, &passes.tile_bin.tile_offsets, tiles + 1);
+    let total = offsets[tiles] as usize;
+    let tile_pairs: Vec<u32> = read(ctx, &passes.tile_bin.tile_pairs, total);
+    let mut binned = 0;
+    for (t, want) in bins.iter().enumerate() {
+        let mut got = tile_pairs[offsets[t] as usize..offsets[t + 1] as usize].to_vec();
+        got.sort_unstable();
+        assert_eq!(&got, want, "tile {t}: binned pairs");
+        binned += got.len();
+    }
+    assert_eq!(binned, total);
+
+    // Hard resolve: the shadow flags per list slot to lit per sample.
+    let slots: Vec<u32> = read(ctx, &passes.texel_lists.sample_slot, n);
+    let shadowed: Vec<u32> = read(ctx, &passes.occlusion.shadowed, n);
+    let result: Vec<u32> = read(ctx, &passes.resolve.result, n);
+    let gpu_lit: Vec<Option<bool>> = result
+        .iter()
+        .map(|&r| (r & 2 != 0).then_some(r & 1 != 0))
+        .collect();
+    assert_eq!(gpu_lit, resolve_hard(&sample_texel, &slots, &shadowed));
+    eprintln!(
+        "{}: {} faces, {} listed samples, {pair_count} pairs, {total} binned",
+        inp.desc.name,
+        windows.iter().filter(|w| w.valid).count(),
+        lists.list.len()
+    );
+    assert!(
+        total > 0 && !lists.list.is_empty(),
+        "the case must exercise the passes"
+    );
+}
+
+#[test]
+fn hard_passes_match_their_twins() {
+    let ctx = GpuContext::new(&ContextOptions::validated()).unwrap();
+    let mut pipeline = ShadowPipeline::new(&ctx).unwrap();
+    // A point light (six faces, most of them empty) and several texel maps.
+    for (spec, res) in [
+        ("builtin:plane_sphere", 64),
+        ("builtin:columns", 20),
+        ("builtin:torus_knot:2000", 128),
+    ] {
+        let inp = inputs(spec, 80);
+        let eye = inp.desc.camera.eye;
+        let light = render::light_view(&inp.desc.lights[0], eye).unwrap();
+        pipeline
+            .run(
+                &ctx,
+                &inp.gpu_samples,
+                &inp.gpu_triangles,
+                &light,
+                res,
+                None,
+            )
+            .unwrap();
+        check_hard_passes(&ctx, &pipeline, &inp, &light, res);
+    }
+    ctx.check_validation().unwrap();
+}
+
+#[test]
+fn soft_resolve_matches_its_twin() {
+    let ctx = GpuContext::new(&ContextOptions::validated()).unwrap();
+    let mut pipeline = ShadowPipeline::new(&ctx).unwrap();
+    let inp = inputs("builtin:demo", 64);
+    let eye = inp.desc.camera.eye;
+    for (mode, samples) in [(SoftMode::Exact, 200), (SoftMode::Lut, 128)] {
+        let settings = ShadowSettings {
+            mode,
+            ..Default::default()
+        };
+        let light = common::sphere_light(&inp.desc, samples);
+        let (sl, lv): (SoftLight, LightView) = render::soft_light(&light, eye, &settings).unwrap();
+        let out = pipeline
+            .run(
+                &ctx,
+                &inp.gpu_samples,
+                &inp.gpu_triangles,
+                &lv,
+                settings.soft_light_texels,
+                Some(&sl),
+            )
+            .unwrap();
+        let passes = pipeline.passes();
+        let n = inp.samples.len();
+        let words = sl.mask_words();
+        let sample_texel: Vec<u32> = read(&ctx, &passes.texel_lists.sample_texel, n);
+        let slots: Vec<u32> = read(&ctx, &passes.texel_lists.sample_slot, n);
+        let listed = sample_texel.iter().filter(|&&t| t != NOT_LISTED).count();
+        let blocked: Vec<u32> = read(&ctx, &passes.soft_occlusion.blocked, listed * words);
+        let soft = out.soft.unwrap();
+        let mut partly = 0;
+        for i in 0..n {
+            let got = &soft.visible[i * words..(i + 1) * words];
+            if sample_texel[i] == NOT_LISTED {
+                assert!(got.iter().all(|&w| w == 0) && soft.visibility[i].is_none());
+                continue;
+            }
+            let (p, nrm) = inp.samples[i].unwrap();
+            let s = slots[i] as usize;
+            let (want, v) = resolve_soft(p, nrm, &blocked[s * words..(s + 1) * words], &sl.samples);
+            assert_eq!(
+                got,
+                &want[..],
+                "{mode:?}: sample {i}: visible light samples"
+            );
+            assert_eq!(
+                soft.visibility[i],
+                Some(v),
+                "{mode:?}: sample {i}: visibility"
+            );
+            partly += usize::from(v > 0.0 && v < 1.0);
+        }
+        eprintln!("{mode:?} {samples}: {listed} listed samples, {partly} in penumbra");
+        assert!(partly > 0, "the case must have a penumbra");
+    }
+    ctx.check_validation().unwrap();
+}
