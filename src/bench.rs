@@ -1,5 +1,5 @@
 //! `afs bench`: run time against error for the alias-free soft shadows and
-//! the [baselines](crate::baselines), on several scenes, against a
+//! the [`crate::baselines`] module, on several scenes, against a
 //! converged oracle image (the CPU oracle with many Sobol light samples).
 //!
 //! Every scene gets a sphere light ([`bench_light`]: the scene's own, or
@@ -341,23 +341,44 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+impl BenchOptions {
+    /// A size in 1..=2048, at least one repeat and one scene.
+    fn validate(&self) -> Result<()> {
+        if self.size == 0 || self.size > 2048 {
+            return Err(Error::InvalidInput(format!(
+                "bench size must be in 1..=2048, got {}",
+                self.size
+            )));
+        }
+        if self.repeats == 0 {
+            return Err(Error::InvalidInput(
+                "bench repeats must be at least 1".into(),
+            ));
+        }
+        if self.scenes.is_empty() {
+            return Err(Error::InvalidInput("no scenes to bench".into()));
+        }
+        Ok(())
+    }
+}
+
+/// The bench's progress bar over `len` steps.
+fn progress_bar(len: u64) -> indicatif::ProgressBar {
+    let pb = indicatif::ProgressBar::new(len);
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{msg:>40} [{bar:30}] {pos}/{len}, {elapsed} (eta {eta})",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    pb
+}
+
 /// Runs the sweep on every scene and writes `bench.csv` and `bench.png`
 /// into `options.out`; returns the rows.
 pub fn run(engine: &mut Engine, options: &BenchOptions) -> Result<Vec<BenchRow>> {
-    if options.size == 0 || options.size > 2048 {
-        return Err(Error::InvalidInput(format!(
-            "bench size must be in 1..=2048, got {}",
-            options.size
-        )));
-    }
-    if options.repeats == 0 {
-        return Err(Error::InvalidInput(
-            "bench repeats must be at least 1".into(),
-        ));
-    }
-    if options.scenes.is_empty() {
-        return Err(Error::InvalidInput("no scenes to bench".into()));
-    }
+    options.validate()?;
     let scenes: Vec<SceneDescription> = options
         .scenes
         .iter()
@@ -366,17 +387,9 @@ pub fn run(engine: &mut Engine, options: &BenchOptions) -> Result<Vec<BenchRow>>
     std::fs::create_dir_all(&options.out).map_err(|e| Error::io(&options.out, e))?;
     let configs = sweep(options.quick);
     let mut baselines = Baselines::new(engine.context())?;
-    let pb = options.progress.then(|| {
-        let pb = indicatif::ProgressBar::new((scenes.len() * (configs.len() + 1)) as u64);
-        pb.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{msg:>40} [{bar:30}] {pos}/{len}, {elapsed} (eta {eta})",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-            .progress_chars("=> "),
-        );
-        pb
-    });
+    let pb = options
+        .progress
+        .then(|| progress_bar((scenes.len() * (configs.len() + 1)) as u64));
     let mut rows = Vec::new();
     for desc in &scenes {
         let short = desc

@@ -14,6 +14,8 @@
 //! - [`vulkan`]: the small Vulkan backend (instance, device, buffers,
 //!   pipelines, barriers, profiler);
 //! - [`gpu`] and [`cpu`]: each compute pass and its CPU twin;
+//! - [`render`]: a frame top to bottom and the public [`render::Engine`];
+//! - [`stats`]: a frame's statistics, typed;
 //! - [`dump`]: the on-disk result format shared by the GPU path and the oracle.
 
 pub mod baselines;
@@ -27,6 +29,7 @@ pub mod oracle;
 pub mod render;
 pub mod scene;
 pub mod shade;
+pub mod stats;
 pub mod vulkan;
 
 pub use error::{Error, Result};

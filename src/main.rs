@@ -216,7 +216,6 @@ fn write_outputs(args: &RenderArgs, frame: &Frame) -> Result<()> {
 }
 
 fn report(desc: &SceneDescription, frame: &Frame, args: &RenderArgs) {
-    let stats = &frame.dump.stats;
     println!(
         "{}: {} triangles, {}x{} pixels, {} light(s)",
         desc.name,
@@ -236,8 +235,8 @@ fn report(desc: &SceneDescription, frame: &Frame, args: &RenderArgs) {
     }
     println!(
         "  total {:.1} ms on {}",
-        stats["total_ms"].as_f64().unwrap_or(0.0),
-        stats["device"].as_str().unwrap_or("?")
+        frame.stats.total_ms(),
+        frame.stats.device()
     );
     println!("  wrote {}", args.output.display());
     if let Some(d) = &args.dump {
@@ -246,9 +245,46 @@ fn report(desc: &SceneDescription, frame: &Frame, args: &RenderArgs) {
     if args.stats {
         println!(
             "{}",
-            serde_json::to_string_pretty(stats).unwrap_or_default()
+            serde_json::to_string_pretty(&frame.stats).unwrap_or_default()
         );
     }
+}
+
+/// `afs bench`: the sweep, its CSV, plot and ratio table.
+fn bench(args: &BenchArgs) -> Result<()> {
+    let mut engine = Engine::new(&ContextOptions {
+        device: args.device.clone(),
+        ..Default::default()
+    })?;
+    let options = alias_free_shadows::bench::BenchOptions {
+        out: args.out.clone(),
+        size: args.size.unwrap_or(if args.quick { 32 } else { 256 }),
+        quick: args.quick,
+        scenes: args.scenes.clone().unwrap_or_else(|| {
+            if args.quick {
+                vec!["builtin:plane_sphere".into()]
+            } else {
+                alias_free_shadows::bench::default_scenes()
+            }
+        }),
+        repeats: args.repeats.unwrap_or(if args.quick { 1 } else { 3 }),
+        reference_samples: args
+            .reference_samples
+            .unwrap_or(if args.quick { 256 } else { 4096 }),
+        progress: !args.quiet,
+    };
+    let t0 = std::time::Instant::now();
+    let rows = alias_free_shadows::bench::run(&mut engine, &options)?;
+    print!("{}", alias_free_shadows::bench::ratios(&rows));
+    println!(
+        "{} configurations in {:.1} s; wrote {}, {} and {}",
+        rows.len(),
+        t0.elapsed().as_secs_f64(),
+        options.out.join("bench.csv").display(),
+        options.out.join("bench.png").display(),
+        options.out.join("bench-ratios.md").display()
+    );
+    Ok(())
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -309,42 +345,7 @@ fn run(cli: Cli) -> Result<()> {
                 }
             }
         }
-        Command::Bench(args) => {
-            let mut engine = Engine::new(&ContextOptions {
-                device: args.device.clone(),
-                ..Default::default()
-            })?;
-            let options = alias_free_shadows::bench::BenchOptions {
-                out: args.out.clone(),
-                size: args.size.unwrap_or(if args.quick { 32 } else { 256 }),
-                quick: args.quick,
-                scenes: args.scenes.clone().unwrap_or_else(|| {
-                    if args.quick {
-                        vec!["builtin:plane_sphere".into()]
-                    } else {
-                        alias_free_shadows::bench::default_scenes()
-                    }
-                }),
-                repeats: args.repeats.unwrap_or(if args.quick { 1 } else { 3 }),
-                reference_samples: args.reference_samples.unwrap_or(if args.quick {
-                    256
-                } else {
-                    4096
-                }),
-                progress: !args.quiet,
-            };
-            let t0 = std::time::Instant::now();
-            let rows = alias_free_shadows::bench::run(&mut engine, &options)?;
-            print!("{}", alias_free_shadows::bench::ratios(&rows));
-            println!(
-                "{} configurations in {:.1} s; wrote {}, {} and {}",
-                rows.len(),
-                t0.elapsed().as_secs_f64(),
-                options.out.join("bench.csv").display(),
-                options.out.join("bench.png").display(),
-                options.out.join("bench-ratios.md").display()
-            );
-        }
+        Command::Bench(args) => bench(&args)?,
         Command::Info => {
             let devices = vulkan::list_devices()?;
             if devices.is_empty() {

@@ -649,7 +649,7 @@ fn one_texel_holds_a_million_samples() {
     let r = engine
         .hard_shadows(&scene, eye, &samples, &light, 16)
         .unwrap();
-    let max_list = r.stats["max_list_length"].as_u64().unwrap();
+    let max_list = r.stats.max_list_length as u64;
     let wrong = (0..samples.len())
         .filter(|&i| (r.lit[i] == Some(true)) != (want[index(i)] > 0.5))
         .count();
@@ -680,7 +680,7 @@ fn one_texel_holds_a_million_samples() {
     let r = engine
         .soft_shadows(&scene, eye, &samples, &light, &settings)
         .unwrap();
-    let max_list = r.stats["max_list_length"].as_u64().unwrap();
+    let max_list = r.stats.max_list_length as u64;
     let wrong = (0..samples.len())
         .filter(|&i| r.visibility[i].unwrap_or(0.0) != want[index(i)])
         .count();
@@ -780,7 +780,7 @@ fn a_wire_thinner_than_a_texel_casts_an_unbroken_shadow() {
         let broken_rows = (0..rows)
             .filter(|row| (0..across).all(|k| r.lit[row * across + k] == Some(true)))
             .count();
-        let texel_over_wire = r.stats["light_texels"].as_u64().unwrap();
+        let texel_over_wire = r.stats.light_texels as u64;
         eprintln!("wire at {texels}² light texels: {disagree} disagreements, {broken_rows} of {rows} rows without shadow ({texel_over_wire})");
         assert_eq!(disagree, 0);
         assert_eq!(

@@ -143,3 +143,78 @@ fn error_paths_destroy_every_vulkan_object() {
     let left = std::mem::take(&mut *messages.lock().unwrap());
     assert!(left.is_empty(), "at shutdown: {left:#?}");
 }
+
+/// The frame's statistics (a GPU frame's).
+fn gpu_stats(frame: &alias_free_shadows::render::Frame) -> &alias_free_shadows::stats::FrameStats {
+    match &frame.stats {
+        alias_free_shadows::stats::Stats::Gpu(s) => s,
+        other => panic!("not a GPU frame: {other:?}"),
+    }
+}
+
+/// Resources live across frames: a second frame of the same size creates
+/// no buffer or image (the count is the device's own, of every buffer and
+/// image made), for a point light, a light with extent in both modes, and
+/// the user-sample API; a smaller frame after a larger one reuses the
+/// larger buffers (it makes only render targets of its own size) and gives
+/// exactly the result of a fresh engine.
+#[test]
+fn a_second_frame_of_the_same_size_allocates_nothing() {
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    for spec in ["builtin:plane_sphere", "builtin:demo"] {
+        for mode in [file::SoftMode::Lut, file::SoftMode::Exact] {
+            let mut desc = file::load(spec).unwrap();
+            desc.camera.width = 48;
+            desc.camera.height = 40;
+            desc.shadows.mode = mode;
+            let first = engine.render(&desc, FrameOptions::default()).unwrap();
+            let second = engine.render(&desc, FrameOptions::default()).unwrap();
+            let (a, b) = (gpu_stats(&first), gpu_stats(&second));
+            eprintln!(
+                "{spec} {mode:?}: first frame {:?}, second {:?}",
+                a.allocations, b.allocations
+            );
+            assert_eq!(
+                b.allocations.count(),
+                0,
+                "{spec}: the second frame allocated"
+            );
+            assert_eq!(b.lights[0].stats.allocations.count(), 0);
+            assert_eq!(first.dump.visibility, second.dump.visibility);
+        }
+    }
+    // The first frame on a fresh engine does allocate (the count counts).
+    let mut fresh = Engine::new(&ContextOptions::validated()).unwrap();
+    let mut desc = file::load("builtin:demo").unwrap();
+    desc.camera.width = 32;
+    desc.camera.height = 32;
+    let small_fresh = fresh.render(&desc, FrameOptions::default()).unwrap();
+    assert!(gpu_stats(&small_fresh).allocations.buffers > 0);
+    // Smaller after larger: no new buffer (only the view samples' render
+    // targets, which have the image's size), the same visibility as a
+    // fresh engine.
+    let small = engine.render(&desc, FrameOptions::default()).unwrap();
+    let a = gpu_stats(&small).allocations;
+    assert_eq!((a.buffers, a.images), (0, 2), "{a:?}");
+    assert_eq!(small.dump.visibility, small_fresh.dump.visibility);
+
+    // The user-sample API reuses its uploads and passes too.
+    let eye = desc.camera.eye;
+    let samples: Vec<Option<ViewSample>> = small_fresh.view.samples.clone();
+    let settings = ShadowSettings::default();
+    let light = desc.lights[0].clone();
+    let r1 = engine
+        .soft_shadows(&desc.scene, eye, &samples, &light, &settings)
+        .unwrap();
+    let r2 = engine
+        .soft_shadows(&desc.scene, eye, &samples, &light, &settings)
+        .unwrap();
+    assert_eq!(
+        r2.stats.allocations.count(),
+        0,
+        "first: {:?}",
+        r1.stats.allocations
+    );
+    assert_eq!(r1.visible, r2.visible);
+    engine.context().check_validation().unwrap();
+}

@@ -738,7 +738,7 @@ impl<'a> Loader<'a> {
         world: &DMat4,
         materials: &[Material],
     ) -> R<Option<Mesh>> {
-        use json::mesh::{Mode, Semantic};
+        use json::mesh::Mode;
         let mode = match prim.mode {
             Checked::Valid(m) => m,
             Checked::Invalid => return Err("invalid primitive mode".into()),
@@ -752,6 +752,65 @@ impl<'a> Loader<'a> {
             ));
             return Ok(None);
         }
+        let positions = self.read_positions(prim)?;
+        let n = positions.len();
+
+        let indices: Vec<u32> = match prim.indices {
+            Some(ia) => {
+                let idx = self
+                    .read_indices(ia.value())
+                    .map_err(|e| format!("indices: {e}"))?;
+                if let Some(k) = idx.iter().position(|&i| i as usize >= n) {
+                    return Err(format!(
+                        "index {} (at position {k} of accessor {}) is out of range: {n} vertices",
+                        idx[k],
+                        ia.value()
+                    ));
+                }
+                idx
+            }
+            None => (0..n as u32).collect(),
+        };
+        let triangles = triangulate(mode, &indices);
+        if mode == Mode::Triangles && !indices.len().is_multiple_of(3) {
+            self.warn(format!(
+                "mesh {name:?}: {} indices are not a multiple of 3; the last {} are ignored",
+                indices.len(),
+                indices.len() % 3
+            ));
+        }
+        if triangles.is_empty() {
+            return Ok(None);
+        }
+
+        let uvs = self.read_uvs(prim, n)?;
+
+        let material = match prim.material {
+            Some(m) if m.value() < materials.len() => Some(m.value()),
+            Some(m) => return Err(format!("material {} does not exist", m.value())),
+            None => None,
+        };
+
+        let mut mesh = Mesh {
+            name: name.to_string(),
+            positions,
+            uvs,
+            indices: triangles,
+            material,
+            closed: false,
+        };
+        mesh.transform(world);
+        if let Some(k) = mesh.positions.iter().position(|p| !p.is_finite()) {
+            return Err(format!("vertex {k} is not finite after the node transform"));
+        }
+        mesh.closed = welded_is_closed(&mesh.positions, &mesh.indices);
+        Ok(Some(mesh))
+    }
+
+    /// A primitive's POSITION attribute: VEC3, FLOAT (or quantized with
+    /// `KHR_mesh_quantization`), every vertex finite.
+    fn read_positions(&mut self, prim: &json::mesh::Primitive) -> R<Vec<DVec3>> {
+        use json::mesh::Semantic;
         let pos_acc = prim
             .attributes
             .get(&Checked::Valid(Semantic::Positions))
@@ -807,82 +866,41 @@ impl<'a> Loader<'a> {
             }
             positions.push(v);
         }
+        Ok(positions)
+    }
 
-        let indices: Vec<u32> = match prim.indices {
-            Some(ia) => {
-                let idx = self
-                    .read_indices(ia.value())
-                    .map_err(|e| format!("indices: {e}"))?;
-                if let Some(k) = idx.iter().position(|&i| i as usize >= n) {
-                    return Err(format!(
-                        "index {} (at position {k} of accessor {}) is out of range: {n} vertices",
-                        idx[k],
-                        ia.value()
-                    ));
+    /// A primitive's TEXCOORD_0 attribute, when present: VEC2, one per
+    /// vertex (`n`), every value finite.
+    fn read_uvs(&mut self, prim: &json::mesh::Primitive, n: usize) -> R<Option<Vec<DVec2>>> {
+        use json::mesh::Semantic;
+        Ok(
+            match prim.attributes.get(&Checked::Valid(Semantic::TexCoords(0))) {
+                None => None,
+                Some(ua) => {
+                    let uv = self
+                        .read_accessor(ua.value())
+                        .map_err(|e| format!("TEXCOORD_0: {e}"))?;
+                    if uv.components != 2 {
+                        return Err(format!("TEXCOORD_0 accessor {} must be VEC2", ua.value()));
+                    }
+                    if uv.count() != n {
+                        return Err(format!(
+                            "TEXCOORD_0 has {} elements but POSITION has {n}",
+                            uv.count()
+                        ));
+                    }
+                    if uv.values.iter().any(|v| !v.is_finite()) {
+                        return Err("TEXCOORD_0 has a non-finite value".into());
+                    }
+                    Some(
+                        uv.values
+                            .chunks_exact(2)
+                            .map(|c| DVec2::new(c[0], c[1]))
+                            .collect::<Vec<_>>(),
+                    )
                 }
-                idx
-            }
-            None => (0..n as u32).collect(),
-        };
-        let triangles = triangulate(mode, &indices);
-        if mode == Mode::Triangles && !indices.len().is_multiple_of(3) {
-            self.warn(format!(
-                "mesh {name:?}: {} indices are not a multiple of 3; the last {} are ignored",
-                indices.len(),
-                indices.len() % 3
-            ));
-        }
-        if triangles.is_empty() {
-            return Ok(None);
-        }
-
-        let uvs = match prim.attributes.get(&Checked::Valid(Semantic::TexCoords(0))) {
-            None => None,
-            Some(ua) => {
-                let uv = self
-                    .read_accessor(ua.value())
-                    .map_err(|e| format!("TEXCOORD_0: {e}"))?;
-                if uv.components != 2 {
-                    return Err(format!("TEXCOORD_0 accessor {} must be VEC2", ua.value()));
-                }
-                if uv.count() != n {
-                    return Err(format!(
-                        "TEXCOORD_0 has {} elements but POSITION has {n}",
-                        uv.count()
-                    ));
-                }
-                if uv.values.iter().any(|v| !v.is_finite()) {
-                    return Err("TEXCOORD_0 has a non-finite value".into());
-                }
-                Some(
-                    uv.values
-                        .chunks_exact(2)
-                        .map(|c| DVec2::new(c[0], c[1]))
-                        .collect::<Vec<_>>(),
-                )
-            }
-        };
-
-        let material = match prim.material {
-            Some(m) if m.value() < materials.len() => Some(m.value()),
-            Some(m) => return Err(format!("material {} does not exist", m.value())),
-            None => None,
-        };
-
-        let mut mesh = Mesh {
-            name: name.to_string(),
-            positions,
-            uvs,
-            indices: triangles,
-            material,
-            closed: false,
-        };
-        mesh.transform(world);
-        if let Some(k) = mesh.positions.iter().position(|p| !p.is_finite()) {
-            return Err(format!("vertex {k} is not finite after the node transform"));
-        }
-        mesh.closed = welded_is_closed(&mesh.positions, &mesh.indices);
-        Ok(Some(mesh))
+            },
+        )
     }
 
     fn load_camera(&mut self, ci: usize, world: &DMat4, label: &str) -> Option<Camera> {

@@ -137,35 +137,7 @@ fn glb_bytes(scene: &Scene) -> std::result::Result<Vec<u8>, String> {
         meshes.push(json!({"name": mesh.name, "primitives": [prim]}));
     }
 
-    let mut materials = Vec::new();
-    let mut textures = Vec::new();
-    let mut images = Vec::new();
-    for (mi, m) in scene.materials.iter().enumerate() {
-        let mut pbr = json!({
-            "baseColorFactor": m.base_color_factor,
-            "metallicFactor": 0.0,
-            "roughnessFactor": 1.0,
-        });
-        if let Some(img) = m.base_color_texture.as_ref().and_then(|t| t.image.as_ref()) {
-            let mut png = std::io::Cursor::new(Vec::new());
-            img.write_to(&mut png, image::ImageFormat::Png)
-                .map_err(|e| format!("material {:?} (#{mi}): PNG encoding failed: {e}", m.name))?;
-            let view = b.view(png.get_ref(), None);
-            images.push(json!({"bufferView": view, "mimeType": "image/png"}));
-            textures.push(json!({"source": images.len() - 1, "sampler": 0}));
-            pbr["baseColorTexture"] = json!({"index": textures.len() - 1});
-        }
-        let mut mat = json!({"name": m.name, "pbrMetallicRoughness": pbr, "doubleSided": true});
-        match m.alpha_mode {
-            AlphaMode::Opaque => {}
-            AlphaMode::Mask => {
-                mat["alphaMode"] = json!("MASK");
-                mat["alphaCutoff"] = json!(m.alpha_cutoff);
-            }
-            AlphaMode::Blend => mat["alphaMode"] = json!("BLEND"),
-        }
-        materials.push(mat);
-    }
+    let (materials, textures, images) = write_materials(&mut b, scene)?;
 
     while !b.bin.len().is_multiple_of(4) {
         b.bin.push(0);
@@ -199,11 +171,17 @@ fn glb_bytes(scene: &Scene) -> std::result::Result<Vec<u8>, String> {
         put("buffers", vec![json!({"byteLength": b.bin.len()})]);
     }
 
-    let mut json_bytes = serde_json::to_vec(&root).map_err(|e| e.to_string())?;
+    let json_bytes = serde_json::to_vec(&root).map_err(|e| e.to_string())?;
+    glb_container(json_bytes, &b.bin)
+}
+
+/// The GLB container: header, the JSON chunk (padded with spaces) and the
+/// binary chunk when there is one (`bin` already padded to 4 bytes).
+fn glb_container(mut json_bytes: Vec<u8>, bin: &[u8]) -> std::result::Result<Vec<u8>, String> {
     while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
-    let total = 12 + 8 + json_bytes.len() + if b.bin.is_empty() { 0 } else { 8 + b.bin.len() };
+    let total = 12 + 8 + json_bytes.len() + if bin.is_empty() { 0 } else { 8 + bin.len() };
     let total32 =
         u32::try_from(total).map_err(|_| format!("{total} bytes exceed the GLB limit of 4 GiB"))?;
     let mut out = Vec::with_capacity(total);
@@ -213,10 +191,48 @@ fn glb_bytes(scene: &Scene) -> std::result::Result<Vec<u8>, String> {
     out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
     out.extend_from_slice(b"JSON");
     out.extend_from_slice(&json_bytes);
-    if !b.bin.is_empty() {
-        out.extend_from_slice(&(b.bin.len() as u32).to_le_bytes());
+    if !bin.is_empty() {
+        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
         out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&b.bin);
+        out.extend_from_slice(bin);
     }
     Ok(out)
+}
+
+/// The glTF `materials`, `textures` and `images` arrays.
+type MaterialArrays = (Vec<Value>, Vec<Value>, Vec<Value>);
+
+/// The scene's materials, with their base-colour textures as PNG images in
+/// the binary chunk.
+fn write_materials(b: &mut Builder, scene: &Scene) -> std::result::Result<MaterialArrays, String> {
+    let mut materials = Vec::new();
+    let mut textures = Vec::new();
+    let mut images = Vec::new();
+    for (mi, m) in scene.materials.iter().enumerate() {
+        let mut pbr = json!({
+            "baseColorFactor": m.base_color_factor,
+            "metallicFactor": 0.0,
+            "roughnessFactor": 1.0,
+        });
+        if let Some(img) = m.base_color_texture.as_ref().and_then(|t| t.image.as_ref()) {
+            let mut png = std::io::Cursor::new(Vec::new());
+            img.write_to(&mut png, image::ImageFormat::Png)
+                .map_err(|e| format!("material {:?} (#{mi}): PNG encoding failed: {e}", m.name))?;
+            let view = b.view(png.get_ref(), None);
+            images.push(json!({"bufferView": view, "mimeType": "image/png"}));
+            textures.push(json!({"source": images.len() - 1, "sampler": 0}));
+            pbr["baseColorTexture"] = json!({"index": textures.len() - 1});
+        }
+        let mut mat = json!({"name": m.name, "pbrMetallicRoughness": pbr, "doubleSided": true});
+        match m.alpha_mode {
+            AlphaMode::Opaque => {}
+            AlphaMode::Mask => {
+                mat["alphaMode"] = json!("MASK");
+                mat["alphaCutoff"] = json!(m.alpha_cutoff);
+            }
+            AlphaMode::Blend => mat["alphaMode"] = json!("BLEND"),
+        }
+        materials.push(mat);
+    }
+    Ok((materials, textures, images))
 }

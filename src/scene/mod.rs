@@ -1,7 +1,7 @@
 //! Scene input: triangle meshes in world space, their materials and cameras.
 //!
 //! A [`Scene`] comes from a glTF file ([`gltf_load`]), a built-in generator
-//! ([`builtin`]) or a TOML scene file ([`file`]) that names one of those and
+//! ([`builtin`]) or a TOML scene file ([`file`](mod@file)) that names one of those and
 //! adds a ground plane, a camera and lights.
 //!
 //! World-space vertex positions are kept in `f64` so that a model far from

@@ -1,0 +1,66 @@
+//! The dump of a frame (`--dump`): per-pixel view samples and visibility,
+//! the scene and the statistics, from the frame's CPU-side results.
+
+use super::super::dump::{Dump, DumpLight, DumpScene};
+use crate::light::LightSamples;
+use crate::oracle::ViewSamples;
+use crate::scene::file::SceneDescription;
+use crate::stats::Stats;
+
+/// Builds the dump's per-pixel arrays from view samples and per-light visibility.
+pub fn make_dump(
+    desc: &SceneDescription,
+    view: &ViewSamples,
+    light_samples: &[LightSamples],
+    visibility: &[Vec<f32>],
+    evaluated: &[Vec<bool>],
+    stats: &Stats,
+) -> Dump {
+    let eye = desc.camera.eye;
+    let mut position = Vec::with_capacity(view.samples.len());
+    let mut normal = Vec::with_capacity(view.samples.len());
+    for s in &view.samples {
+        match s {
+            Some(s) => {
+                let p = s.position - eye;
+                position.push([p.x as f32, p.y as f32, p.z as f32, 1.0]);
+                normal.push([s.normal.x as f32, s.normal.y as f32, s.normal.z as f32, 1.0]);
+            }
+            None => {
+                position.push([0.0; 4]);
+                normal.push([0.0; 4]);
+            }
+        }
+    }
+    let vis = visibility
+        .iter()
+        .zip(evaluated)
+        .map(|(v, e)| {
+            view.samples
+                .iter()
+                .enumerate()
+                .map(|(i, s)| match s {
+                    Some(_) => [v[i], if e[i] { 1.0 } else { 0.0 }, 0.0, 1.0],
+                    None => [0.0; 4],
+                })
+                .collect()
+        })
+        .collect();
+    Dump {
+        width: view.width,
+        height: view.height,
+        position,
+        normal,
+        visibility: vis,
+        scene: DumpScene {
+            camera: desc.camera,
+            lights: desc
+                .lights
+                .iter()
+                .zip(light_samples)
+                .map(|(l, s)| DumpLight::new(l, s))
+                .collect(),
+        },
+        stats: stats.to_json(),
+    }
+}

@@ -1,0 +1,191 @@
+//! The engine's public API: [`Engine`] holds the Vulkan context and every
+//! pass, made once and reused frame after frame. [`Engine::render`] (in
+//! [`super::gpu_frame`]) renders a scene; [`Engine::hard_shadows`] and
+//! [`Engine::soft_shadows`] compute the visibility of the caller's own view
+//! samples.
+
+use glam::DVec3;
+
+use super::inputs::{light_view, soft_light, user_gpu_inputs};
+use super::validate::{validate_gpu_inputs, validate_shadow_inputs};
+use crate::cpu::light_view::LightView;
+use crate::gpu::shared::{GpuTriangle, GpuViewSample};
+use crate::gpu::view_samples::ViewSamplePass;
+use crate::gpu::ShadowPipeline;
+use crate::light::Light;
+use crate::oracle::ViewSample;
+use crate::scene::file::ShadowSettings;
+use crate::scene::Scene;
+use crate::stats::ShadowStats;
+use crate::vulkan::{ContextOptions, GpuContext, GrowBuffer};
+use crate::{Error, Result};
+
+/// The engine: a Vulkan context and the compiled passes, reused frame after
+/// frame, with the buffers they keep across frames.
+pub struct Engine {
+    pub(super) ctx: GpuContext,
+    pub(super) view: ViewSamplePass,
+    pub(super) shadows: ShadowPipeline,
+    /// The scene's triangles of the last frame.
+    pub(super) triangles: GrowBuffer,
+}
+
+/// Hard-shadow visibility of a set of view samples for one light.
+#[derive(Clone, Debug)]
+pub struct HardShadowResult {
+    /// Per view sample: `None` when it faces away from the light (unlit
+    /// without a shadow test), else whether it is lit.
+    pub lit: Vec<Option<bool>>,
+    /// Statistics (counters and milliseconds per pass).
+    pub stats: ShadowStats,
+}
+
+/// Soft-shadow visibility of a set of view samples for one light with extent.
+#[derive(Clone, Debug)]
+pub struct SoftShadowResult {
+    /// Per view sample: the visible fraction of the light samples, `None`
+    /// where not evaluated (no sample, or facing away from the whole light).
+    pub visibility: Vec<Option<f32>>,
+    /// Per view sample, its visible light samples: `mask_words` words, bit
+    /// `j % 32` of word `j / 32` for light sample `j` of
+    /// [`Light::light_samples`].
+    pub visible: Vec<u32>,
+    /// Words per view sample in `visible`.
+    pub mask_words: usize,
+    /// Statistics (counters and milliseconds per pass).
+    pub stats: ShadowStats,
+}
+
+impl Engine {
+    /// Creates the Vulkan context (device from `options`, `AFS_DEVICE`, or
+    /// the default choice) and compiles the passes.
+    pub fn new(options: &ContextOptions) -> Result<Self> {
+        let ctx = GpuContext::new(options)?;
+        let shadows = ShadowPipeline::new(&ctx)?;
+        let view = ViewSamplePass::new(&ctx)?;
+        Ok(Engine {
+            ctx,
+            view,
+            shadows,
+            triangles: GrowBuffer::storage("triangles"),
+        })
+    }
+
+    /// The Vulkan context.
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// The shadow passes (their buffers hold the last run's intermediate
+    /// results, for tests against the CPU twins).
+    pub fn shadow_pipeline(&self) -> &ShadowPipeline {
+        &self.shadows
+    }
+
+    /// Hard-shadow visibility of user-supplied view samples (world-space
+    /// positions and unit geometric normals; `triangle` = the scene triangle
+    /// each lies on, or [`crate::oracle::NO_TRIANGLE`]) for a point or
+    /// directional `light`. Positions are made relative to `eye` (the
+    /// camera) before they go to the GPU in `f32`.
+    pub fn hard_shadows(
+        &mut self,
+        scene: &Scene,
+        eye: DVec3,
+        samples: &[Option<ViewSample>],
+        light: &Light,
+        light_texels: u32,
+    ) -> Result<HardShadowResult> {
+        validate_shadow_inputs(scene, eye, samples, light)?;
+        let lv = light_view(light, eye).ok_or_else(|| {
+            Error::InvalidInput("hard shadows need a point or directional light".into())
+        })?;
+        let (vs, ts) = user_gpu_inputs(scene, eye, samples);
+        self.hard_shadows_gpu(&vs, &ts, &lv, light_texels)
+    }
+
+    /// Soft-shadow visibility (paper §4) of user-supplied view samples (as in
+    /// [`Engine::hard_shadows`]) for a `light` with extent, with the
+    /// `settings`' mode, look-up resolution and light-texel resolution.
+    pub fn soft_shadows(
+        &mut self,
+        scene: &Scene,
+        eye: DVec3,
+        samples: &[Option<ViewSample>],
+        light: &Light,
+        settings: &ShadowSettings,
+    ) -> Result<SoftShadowResult> {
+        validate_shadow_inputs(scene, eye, samples, light)?;
+        settings.validate()?;
+        let (sl, lv) = soft_light(light, eye, settings)
+            .ok_or_else(|| Error::InvalidInput("soft shadows need a light with extent".into()))?;
+        let (vs, ts) = user_gpu_inputs(scene, eye, samples);
+        let texels = settings.soft_light_texels;
+        let out = self
+            .shadows
+            .run(&self.ctx, &vs, &ts, &lv, texels, Some(&sl))?;
+        let stats = ShadowStats::new(&out, texels, lv.face_count(), Some(&sl));
+        let so = out.soft.expect("a soft run returns soft output");
+        Ok(SoftShadowResult {
+            visibility: so.visibility,
+            visible: so.visible,
+            mask_words: so.mask_words,
+            stats,
+        })
+    }
+
+    /// [`Engine::hard_shadows`] on inputs already in GPU form.
+    pub fn hard_shadows_gpu(
+        &mut self,
+        view_samples: &[GpuViewSample],
+        triangles: &[GpuTriangle],
+        light: &LightView,
+        light_texels: u32,
+    ) -> Result<HardShadowResult> {
+        validate_gpu_inputs(view_samples, triangles, light)?;
+        let out = self.shadows.run(
+            &self.ctx,
+            view_samples,
+            triangles,
+            light,
+            light_texels,
+            None,
+        )?;
+        let stats = ShadowStats::new(&out, light_texels, light.face_count(), None);
+        Ok(HardShadowResult {
+            lit: out.lit,
+            stats,
+        })
+    }
+
+    /// Limits the view samples per shadow run: larger sets are split into
+    /// batches, as they are anyway when their buffers would pass the
+    /// device's binding limits. For tests of that path; `None` lifts it.
+    pub fn set_view_sample_batch_limit(&mut self, limit: Option<usize>) {
+        self.shadows.set_batch_limit(limit);
+    }
+
+    /// Limits the triangles per shadow run: more are split into batches
+    /// whose results are combined, as they are anyway when the caster
+    /// buffers would pass the device's binding limits (scenes of millions
+    /// of triangles). For tests of that path; `None` lifts it.
+    pub fn set_triangle_batch_limit(&mut self, limit: Option<usize>) {
+        self.shadows.set_triangle_batch_limit(limit);
+    }
+
+    /// The plane look-up texture the GPU builds for `light` (a light with
+    /// extent) with `settings`' resolution: per texel, then per 128-sample
+    /// block, the bits of the samples behind the texel's plane. For tests
+    /// against [`crate::cpu::plane_lut::build_lut`].
+    pub fn plane_lut_bits(
+        &mut self,
+        light: &Light,
+        eye: DVec3,
+        settings: &ShadowSettings,
+    ) -> Result<Vec<[u32; 4]>> {
+        light.validate()?;
+        let (sl, _) = soft_light(light, eye, settings).ok_or_else(|| {
+            Error::InvalidInput("a look-up texture needs a light with extent".into())
+        })?;
+        self.shadows.plane_lut_bits(&self.ctx, &sl)
+    }
+}

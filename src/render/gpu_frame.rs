@@ -1,0 +1,163 @@
+//! The GPU frame ([`Engine::render`]): the view samples, then per light the
+//! shadow passes ([`crate::gpu::light_passes::LightPasses::run`]), then
+//! shading and the dump.
+
+use std::time::Instant;
+
+use glam::Vec3;
+
+use super::dump_assembly::make_dump;
+use super::inputs::{gpu_triangles, light_view, soft_light};
+use super::{Engine, Frame, FrameOptions};
+use crate::gpu::gpu_inputs;
+use crate::gpu::view_samples::read_view_samples;
+use crate::oracle::{ViewSample, ViewSamples};
+use crate::scene::file::SceneDescription;
+use crate::shade::shade;
+use crate::stats::{FrameCounters, FrameMs, FrameStats, LightStats, ShadowStats, Stats};
+use crate::Result;
+
+/// One light's visibility and evaluated flags, per view sample.
+struct LightResult {
+    visibility: Vec<f32>,
+    evaluated: Vec<bool>,
+    stats: LightStats,
+}
+
+impl Engine {
+    /// Renders a frame: view samples, then per light the shadow passes
+    /// (hard for point and directional lights, soft for lights with
+    /// extent), then shading and the dump. Every buffer lives across
+    /// frames: a second frame of the same size allocates nothing
+    /// (`allocations` in the statistics).
+    pub fn render(&mut self, desc: &SceneDescription, _options: FrameOptions) -> Result<Frame> {
+        desc.validate()?;
+        let t0 = Instant::now();
+        let before = self.ctx.allocations();
+        let eye = desc.camera.eye;
+        let (_, gpu_tris) = gpu_inputs(&[], &gpu_triangles(&desc.scene, eye));
+
+        // 1. View samples: rasterized on the GPU, exact ray-plane positions.
+        let (view_buf, view_ms) = self.view.render(&self.ctx, &desc.camera, &gpu_tris)?;
+        let n = (desc.camera.width * desc.camera.height) as usize;
+        let gpu_view = read_view_samples(&self.ctx, view_buf, n)?;
+        // The CPU copy (shading, dump) is exactly what the GPU has.
+        let view = ViewSamples {
+            width: desc.camera.width,
+            height: desc.camera.height,
+            eye,
+            samples: gpu_view
+                .iter()
+                .map(|s| {
+                    (s.flags != 0).then(|| ViewSample {
+                        position: eye + Vec3::from_array(s.position).as_dvec3(),
+                        normal: Vec3::from_array(s.normal).as_dvec3(),
+                        triangle: s.triangle,
+                    })
+                })
+                .collect(),
+        };
+        let tri_buf = self.triangles.get(&self.ctx, 48 * gpu_tris.len() as u64)?;
+        self.ctx.upload_staged(tri_buf, 0, &gpu_tris)?;
+
+        // 2-5. Per light: lists, casters, rasterization, occlusion, resolve.
+        let mut lights = Vec::new();
+        for k in 0..desc.lights.len() {
+            lights.push(self.light(desc, k, n, gpu_tris.len())?);
+        }
+        let visibility: Vec<Vec<f32>> = lights.iter().map(|l| l.visibility.clone()).collect();
+        let evaluated: Vec<Vec<bool>> = lights.iter().map(|l| l.evaluated.clone()).collect();
+        let t = Instant::now();
+        let image = shade(&view, &desc.lights, &visibility);
+        let shade_ms = t.elapsed().as_secs_f64() * 1e3;
+        let stats = Stats::Gpu(FrameStats {
+            device: self.ctx.info().name.clone(),
+            scene: desc.name.clone(),
+            settings: desc.shadows,
+            width: desc.camera.width,
+            height: desc.camera.height,
+            ms: FrameMs {
+                view_samples_gpu: view_ms,
+                shade_cpu: shade_ms,
+            },
+            lights: lights.into_iter().map(|l| l.stats).collect(),
+            total_ms: t0.elapsed().as_secs_f64() * 1e3,
+            counters: FrameCounters {
+                triangles: gpu_tris.len(),
+                view_samples: gpu_view.iter().filter(|s| s.flags != 0).count(),
+            },
+            allocations: self.ctx.allocations() - before,
+        });
+        let light_samples: Vec<_> = desc.lights.iter().map(|l| l.light_samples()).collect();
+        let dump = make_dump(desc, &view, &light_samples, &visibility, &evaluated, &stats);
+        Ok(Frame {
+            dump,
+            image,
+            view,
+            stats,
+        })
+    }
+
+    /// Light `k`'s shadow passes over the frame's `n` view samples and `nt`
+    /// triangles, which stay on the GPU between passes.
+    fn light(
+        &mut self,
+        desc: &SceneDescription,
+        k: usize,
+        n: usize,
+        nt: usize,
+    ) -> Result<LightResult> {
+        let light = &desc.lights[k];
+        let eye = desc.camera.eye;
+        // Point and directional lights: hard shadows; lights with extent:
+        // the same passes with light-sample bitmasks.
+        let (lv, soft, texels) = match light_view(light, eye) {
+            Some(lv) => (lv, None, desc.shadows.light_texels),
+            None => {
+                let (sl, lv) = soft_light(light, eye, &desc.shadows).ok_or_else(|| {
+                    crate::Error::InvalidInput(format!("light {k} has no samples"))
+                })?;
+                (lv, Some(sl), desc.shadows.soft_light_texels)
+            }
+        };
+        let t = Instant::now();
+        let view_buf = self.view.samples();
+        let tri_buf = self.triangles.buffer();
+        let out = self.shadows.run_on(
+            &self.ctx,
+            view_buf,
+            n,
+            tri_buf,
+            nt,
+            &lv,
+            texels,
+            soft.as_ref(),
+        )?;
+        let mut stats = ShadowStats::new(&out, texels, lv.face_count(), soft.as_ref());
+        stats.wall_ms = Some(t.elapsed().as_secs_f64() * 1e3);
+        let (visibility, evaluated, path) = match &out.soft {
+            Some(so) => (
+                so.visibility.iter().map(|v| v.unwrap_or(0.0)).collect(),
+                so.visibility.iter().map(|v| v.is_some()).collect(),
+                "gpu soft shadows",
+            ),
+            None => (
+                out.lit
+                    .iter()
+                    .map(|l| if *l == Some(true) { 1.0 } else { 0.0 })
+                    .collect(),
+                out.lit.iter().map(|l| l.is_some()).collect(),
+                "gpu hard shadows",
+            ),
+        };
+        Ok(LightResult {
+            visibility,
+            evaluated,
+            stats: LightStats {
+                light: k,
+                path: path.into(),
+                stats,
+            },
+        })
+    }
+}

@@ -1,0 +1,185 @@
+//! The caller's scene, lights and view samples in the form the GPU passes
+//! take: camera-relative `f32`, lights seen from a point, closed meshes
+//! opened where a view sample may see them from the inside.
+
+#[cfg(doc)]
+use super::Engine;
+use glam::{DVec3, Vec3};
+
+use crate::cpu::light_view::LightView;
+use crate::gpu::shared::{GpuTriangle, GpuViewSample};
+use crate::gpu::{gpu_inputs, SoftLight};
+use crate::light::{Light, LightShape};
+use crate::oracle::ViewSample;
+use crate::scene::file::{ShadowSettings, SoftMode};
+use crate::scene::Scene;
+
+/// Corners of the polygon bounding the light's silhouette (influence regions).
+pub const INFLUENCE_POLYGON_DEGREE: u32 = 6;
+
+/// A light with extent as the soft-shadow passes see it (camera-relative
+/// samples), and the point it is seen from (their centre).
+pub fn soft_light(
+    light: &Light,
+    eye: DVec3,
+    settings: &ShadowSettings,
+) -> Option<(SoftLight, LightView)> {
+    if !light.is_area() {
+        return None;
+    }
+    let samples = match light.light_samples() {
+        crate::light::LightSamples::Positions(p) => p,
+        crate::light::LightSamples::Direction(_) => return None,
+    };
+    let sl = SoftLight {
+        samples: samples.iter().map(|p| (*p - eye).as_vec3()).collect(),
+        exact: settings.mode == SoftMode::Exact,
+        lut_resolution: settings.lut_resolution,
+        polygon_degree: INFLUENCE_POLYGON_DEGREE,
+    };
+    let (centre, _) = sl.bounds();
+    Some((sl, LightView::Point { position: centre }))
+}
+
+/// The light as the hard-shadow passes see it, camera-relative; `None`
+/// for lights with extent (handled by the soft-shadow path).
+pub fn light_view(light: &Light, eye: DVec3) -> Option<LightView> {
+    match &light.shape {
+        LightShape::Point { position } => Some(LightView::Point {
+            position: (*position - eye).as_vec3(),
+        }),
+        LightShape::Directional { direction } => Some(LightView::Directional {
+            direction: direction.as_vec3(),
+        }),
+        _ => None,
+    }
+}
+
+/// User view samples and the scene's triangles in GPU form, camera-relative
+/// (the shared first step of [`Engine::hard_shadows`] and
+/// [`Engine::soft_shadows`]).
+pub(crate) fn user_gpu_inputs(
+    scene: &Scene,
+    eye: DVec3,
+    samples: &[Option<ViewSample>],
+) -> (Vec<GpuViewSample>, Vec<GpuTriangle>) {
+    let with_ids: Vec<_> = samples
+        .iter()
+        .map(|s| {
+            s.map(|s| {
+                (
+                    (s.position - eye).as_vec3(),
+                    s.normal.as_vec3().normalize_or_zero(),
+                    s.triangle,
+                )
+            })
+        })
+        .collect();
+    gpu_inputs(&with_ids, &user_gpu_triangles(scene, eye, samples))
+}
+
+/// The scene's triangles as [`Engine::hard_shadows`] and
+/// [`Engine::soft_shadows`] send them for user view samples: as
+/// [`gpu_triangles`], and a closed mesh that some sample may see from the
+/// inside is treated as open too.
+pub fn user_gpu_triangles(
+    scene: &Scene,
+    eye: DVec3,
+    samples: &[Option<ViewSample>],
+) -> Vec<([Vec3; 3], bool)> {
+    let mut triangles = gpu_triangles(scene, eye);
+    let opened = closed_meshes_seen_from_inside(scene, samples);
+    let meshes = scene.triangles();
+    for (t, m) in triangles.iter_mut().zip(&meshes) {
+        t.1 &= !opened[m.mesh as usize];
+    }
+    triangles
+}
+
+/// Per mesh: whether some user view sample may see a closed mesh from the
+/// inside, so that the passes must treat it as open (skipping the faces
+/// that face the light, paper §3.3, is right only for samples outside the
+/// solid). That is a sample on one of its triangles whose normal opposes
+/// the triangle's winding, or any sample not on its triangles that lies
+/// inside it (tested exactly for the samples in its bounding box, up to a
+/// budget of triangle tests; past it, any sample in the box). Treating a
+/// closed mesh as open is always correct, only slower.
+fn closed_meshes_seen_from_inside(scene: &Scene, samples: &[Option<ViewSample>]) -> Vec<bool> {
+    let mut opened = vec![false; scene.meshes.len()];
+    let boxes: Vec<Option<(DVec3, DVec3)>> = scene
+        .meshes
+        .iter()
+        .map(|m| {
+            if !m.closed || m.positions.is_empty() {
+                return None;
+            }
+            let (lo, hi) = m
+                .positions
+                .iter()
+                .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+                    (lo.min(*p), hi.max(*p))
+                });
+            // A margin for samples rounded just outside the surface.
+            let margin = (hi - lo).length() * 1e-6 + lo.abs().max(hi.abs()).max_element() * 1e-12;
+            Some((lo - margin, hi + margin))
+        })
+        .collect();
+    if boxes.iter().all(Option::is_none) {
+        return opened;
+    }
+    let triangles = scene.triangles();
+    // Per closed mesh, samples in its box not on its own surface: tested
+    // for containment exactly where that is cheap, else the mesh opens.
+    let mut in_box: Vec<Vec<DVec3>> = vec![Vec::new(); scene.meshes.len()];
+    for s in samples.iter().flatten() {
+        // The closed mesh the sample lies on, seen from the outside.
+        let mut own = None;
+        if let Some(t) = triangles.get(s.triangle as usize).filter(|t| t.closed) {
+            let v = t.vertices;
+            if (v[1] - v[0]).cross(v[2] - v[0]).dot(s.normal) > 0.0 {
+                own = Some(t.mesh as usize);
+            } else {
+                opened[t.mesh as usize] = true;
+            }
+        }
+        for (m, b) in boxes.iter().enumerate() {
+            if let Some((lo, hi)) = b {
+                if own != Some(m) && s.position.cmpge(*lo).all() && s.position.cmple(*hi).all() {
+                    in_box[m].push(s.position);
+                }
+            }
+        }
+    }
+    /// Triangle tests allowed per mesh for exact containment.
+    const CONTAINMENT_BUDGET: usize = 20_000_000;
+    for (m, points) in in_box.iter().enumerate() {
+        if opened[m] || points.is_empty() {
+            continue;
+        }
+        let mesh = &scene.meshes[m];
+        // A sample on or just outside the surface (f32 rounding) may count
+        // as inside: that only opens the mesh, which is always correct.
+        opened[m] = points.len().saturating_mul(mesh.indices.len()) > CONTAINMENT_BUDGET
+            || points.iter().any(|p| mesh.contains(*p));
+    }
+    opened
+}
+
+/// The scene's triangles, camera-relative, in global-id order, each with
+/// whether the passes may treat it as part of a closed mesh. A closed mesh
+/// that contains the eye is treated as open: its view samples are on the
+/// inside, where skipping the faces that face the light (paper §3.3) would
+/// drop the very faces that hide the light.
+pub fn gpu_triangles(scene: &Scene, eye: DVec3) -> Vec<([Vec3; 3], bool)> {
+    let inside = scene.closed_meshes_containing(eye);
+    scene
+        .triangles()
+        .iter()
+        .map(|t| {
+            (
+                t.vertices.map(|v| (v - eye).as_vec3()),
+                t.closed && !inside[t.mesh as usize],
+            )
+        })
+        .collect()
+}

@@ -1,0 +1,243 @@
+//! Statistics of a frame, typed: what `--stats` prints and `stats.json`
+//! holds. The shadow passes' counters and times of one light
+//! ([`ShadowStats`], from [`ShadowOutput`]), a GPU frame ([`FrameStats`])
+//! and an oracle frame ([`ReferenceStats`]).
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::gpu::shared::counter;
+use crate::gpu::{ShadowOutput, SoftLight};
+use crate::scene::file::ShadowSettings;
+use crate::vulkan::Allocations;
+
+/// The shadow passes of one light: list, caster and occlusion counters,
+/// milliseconds per pass, buffers used and created.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ShadowStats {
+    /// Light-texel map resolution per face.
+    pub light_texels: u32,
+    /// Light faces (6 for a point light, 1 for a directional light).
+    pub light_faces: usize,
+    /// View samples in some light-texel list.
+    pub listed_view_samples: u64,
+    /// Light texels with a non-empty list, and their share of all.
+    pub occupied_texels: usize,
+    pub occupied_texels_percent: f64,
+    /// Mean list length over the occupied texels, and the longest list.
+    pub average_list_length: f64,
+    pub max_list_length: u32,
+    /// Triangles the caster setup saw, and what became of them.
+    pub triangles_submitted: u64,
+    pub triangles_culled: u64,
+    pub triangles_degenerate: u32,
+    pub triangles_front_facing_closed: u32,
+    pub triangles_outside_frustum: u32,
+    pub triangles_rasterized: u32,
+    /// (Caster, light face) pairs rasterized.
+    pub caster_face_pairs: u32,
+    /// (Caster, texel) pairs the occlusion visited.
+    pub texels_visited: u32,
+    /// View-sample–triangle tests.
+    pub view_sample_triangle_tests: u32,
+    /// Bytes of GPU buffers the passes used.
+    pub gpu_buffer_bytes: u64,
+    /// Buffers and images the passes created (0 once warm).
+    pub allocations: Allocations,
+    /// Milliseconds per pass (passes run once per 128-sample block summed).
+    pub ms: BTreeMap<String, Option<f64>>,
+    /// Their sum.
+    pub gpu_ms: f64,
+    /// Host wall time of the light's whole run.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub wall_ms: Option<f64>,
+    /// Lights with extent only.
+    #[serde(flatten, skip_serializing_if = "Option::is_none", default)]
+    pub soft: Option<SoftStats>,
+}
+
+/// What the soft-shadow passes add.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SoftStats {
+    pub light_samples: usize,
+    /// `lut` or `exact`.
+    pub mode: String,
+    pub lut_resolution: u32,
+    /// View-sample–triangle tests that blocked at least one light sample,
+    /// and their share of all tests.
+    pub blocking_tests: u32,
+    pub blocking_share: f64,
+    /// Whether this run built the plane look-up texture (it is built once
+    /// per light shape and reused: its time, `ms.lut_build`, appears only
+    /// in the frame that built it).
+    pub lut_built: bool,
+}
+
+impl ShadowStats {
+    /// The statistics of one light's run over `resolution`² texels per
+    /// face; `soft` for a light with extent.
+    pub fn new(
+        out: &ShadowOutput,
+        resolution: u32,
+        faces: usize,
+        soft: Option<&SoftLight>,
+    ) -> Self {
+        let occupied = out.list_lengths.iter().filter(|&&c| c > 0).count();
+        let listed: u64 = out.list_lengths.iter().map(|&c| c as u64).sum();
+        let c = &out.counters;
+        let culled = c[counter::DEGENERATE] as u64
+            + c[counter::FRONT_FACING_CLOSED] as u64
+            + c[counter::CULLED] as u64;
+        let mut ms = BTreeMap::new();
+        for t in &out.timings {
+            let prev: Option<f64> = ms.get(&t.name).copied().flatten();
+            let v = match (prev, t.ms) {
+                (Some(a), Some(b)) => Some(a + b),
+                (None, b) => b,
+                (a, None) => a,
+            };
+            ms.insert(t.name.clone(), v);
+        }
+        let texels = (faces as f64 * (resolution as f64).powi(2)).max(1.0);
+        ShadowStats {
+            light_texels: resolution,
+            light_faces: faces,
+            listed_view_samples: listed,
+            occupied_texels: occupied,
+            occupied_texels_percent: 100.0 * occupied as f64 / texels,
+            average_list_length: listed as f64 / occupied.max(1) as f64,
+            max_list_length: out.list_lengths.iter().copied().max().unwrap_or(0),
+            triangles_submitted: culled + c[counter::RASTERIZED] as u64,
+            triangles_culled: culled,
+            triangles_degenerate: c[counter::DEGENERATE],
+            triangles_front_facing_closed: c[counter::FRONT_FACING_CLOSED],
+            triangles_outside_frustum: c[counter::CULLED],
+            triangles_rasterized: c[counter::RASTERIZED],
+            caster_face_pairs: c[counter::PAIRS],
+            texels_visited: c[counter::TEXELS_VISITED],
+            view_sample_triangle_tests: c[counter::TESTS],
+            gpu_buffer_bytes: out.buffer_bytes,
+            allocations: out.allocations,
+            ms,
+            gpu_ms: out.timings.iter().filter_map(|t| t.ms).sum(),
+            wall_ms: None,
+            soft: soft.map(|sl| SoftStats {
+                light_samples: sl.samples.len(),
+                mode: if sl.exact { "exact" } else { "lut" }.into(),
+                lut_resolution: sl.lut_resolution,
+                blocking_tests: c[counter::BLOCKING],
+                blocking_share: c[counter::BLOCKING] as f64 / c[counter::TESTS].max(1) as f64,
+                lut_built: out.soft.as_ref().is_some_and(|s| s.lut_built),
+            }),
+        }
+    }
+}
+
+/// A GPU frame.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FrameStats {
+    /// The Vulkan device.
+    pub device: String,
+    pub scene: String,
+    pub settings: ShadowSettings,
+    pub width: u32,
+    pub height: u32,
+    pub ms: FrameMs,
+    /// Per light, in scene order.
+    pub lights: Vec<LightStats>,
+    /// Host wall time of the whole frame.
+    pub total_ms: f64,
+    pub counters: FrameCounters,
+    /// Buffers and images the whole frame created (0 for a second frame of
+    /// the same size: every resource lives across frames).
+    pub allocations: Allocations,
+}
+
+/// Milliseconds of a frame's steps outside the lights' passes.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FrameMs {
+    pub view_samples_gpu: f64,
+    pub shade_cpu: f64,
+}
+
+/// One light of a GPU frame.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LightStats {
+    /// The light's index in the scene.
+    pub light: usize,
+    /// `gpu hard shadows` or `gpu soft shadows`.
+    pub path: String,
+    pub stats: ShadowStats,
+}
+
+/// A frame's scene counters.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FrameCounters {
+    pub triangles: usize,
+    pub view_samples: usize,
+}
+
+/// A frame of the CPU oracle.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceStats {
+    pub device: String,
+    pub scene: String,
+    pub settings: ShadowSettings,
+    pub width: u32,
+    pub height: u32,
+    pub ms: ReferenceMs,
+    pub total_ms: f64,
+    pub counters: ReferenceCounters,
+}
+
+/// Milliseconds of an oracle frame's steps.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceMs {
+    pub bvh: f64,
+    pub view_samples: f64,
+    pub shadow_rays_per_light: Vec<f64>,
+    pub shade: f64,
+}
+
+/// An oracle frame's counters.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceCounters {
+    pub triangles: usize,
+    pub view_samples: usize,
+    pub light_samples: Vec<usize>,
+    pub shadow_rays: u64,
+    pub shadow_rays_per_second: f64,
+    pub threads: usize,
+}
+
+/// The statistics of a frame, GPU or oracle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Stats {
+    Gpu(FrameStats),
+    Reference(ReferenceStats),
+}
+
+impl Stats {
+    /// Host wall time of the frame.
+    pub fn total_ms(&self) -> f64 {
+        match self {
+            Stats::Gpu(s) => s.total_ms,
+            Stats::Reference(s) => s.total_ms,
+        }
+    }
+
+    /// The device the frame ran on.
+    pub fn device(&self) -> &str {
+        match self {
+            Stats::Gpu(s) => &s.device,
+            Stats::Reference(s) => &s.device,
+        }
+    }
+
+    /// As JSON (`stats.json`).
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+}
