@@ -258,7 +258,7 @@ fn sweep(quick: bool) -> Vec<Config> {
 }
 
 /// A scene as the bench uses it: glTF models on a ground, `size`² pixels.
-fn load_scene(spec: &str, size: u32) -> Result<SceneDescription> {
+pub fn load_scene(spec: &str, size: u32) -> Result<SceneDescription> {
     let mut desc = file::load(spec)?;
     if !spec.starts_with("builtin:") && !spec.ends_with(".toml") {
         file::place_on_ground(&mut desc.scene);
@@ -642,7 +642,7 @@ fn run_config(
 }
 
 /// The point light of the hard-shadow rows: at the bench light's centre.
-fn hard_light(desc: &SceneDescription) -> Result<Light> {
+pub fn hard_light(desc: &SceneDescription) -> Result<Light> {
     let soft = bench_light(desc, 1)?;
     Ok(Light {
         shape: LightShape::Point {

@@ -10,7 +10,9 @@
 //! - [`Baselines::per_sample_maps`]: one shadow map per light sample of
 //!   [`Light::light_samples`] (the same samples as the engine), averaged:
 //!   the brute-force sample-based method;
-//! - [`oracle`]: the CPU ray-casting oracle, wrapped to be timed the same way.
+//! - [`oracle`]: the CPU ray-casting oracle, wrapped to be timed the same way;
+//! - `embree` (cargo feature `embree`): Embree's occlusion rays, the CPU ray
+//!   tracer a user would pick instead, with the same samples.
 //!
 //! Every method takes what [`Engine::soft_shadows`](crate::render::Engine::soft_shadows)
 //! takes (scene, eye, view samples, light) and returns a visibility per view
@@ -19,6 +21,8 @@
 //! box for a directional light); a sample facing away from the light (or
 //! light sample) is unlit, as in the oracle.
 
+#[cfg(feature = "embree")]
+pub mod embree;
 mod shadow_map;
 
 use std::time::Instant;
