@@ -65,6 +65,46 @@ const VARIANTS: &[Variant] = &[
         "SOFT_OCCLUSION_LUT8",
         &[("LUT_BLOCKS", "8")],
     ),
+    (
+        "soft_occlusion",
+        "SOFT_OCCLUSION_SURE1",
+        &[("LUT_BLOCKS", "1"), ("SURE", "1")],
+    ),
+    (
+        "soft_occlusion",
+        "SOFT_OCCLUSION_SURE2",
+        &[("LUT_BLOCKS", "2"), ("SURE", "1")],
+    ),
+    (
+        "soft_occlusion",
+        "SOFT_OCCLUSION_SURE3",
+        &[("LUT_BLOCKS", "3"), ("SURE", "1")],
+    ),
+    (
+        "soft_occlusion",
+        "SOFT_OCCLUSION_SURE4",
+        &[("LUT_BLOCKS", "4"), ("SURE", "1")],
+    ),
+    (
+        "soft_occlusion",
+        "SOFT_OCCLUSION_SURE5",
+        &[("LUT_BLOCKS", "5"), ("SURE", "1")],
+    ),
+    (
+        "soft_occlusion",
+        "SOFT_OCCLUSION_SURE6",
+        &[("LUT_BLOCKS", "6"), ("SURE", "1")],
+    ),
+    (
+        "soft_occlusion",
+        "SOFT_OCCLUSION_SURE7",
+        &[("LUT_BLOCKS", "7"), ("SURE", "1")],
+    ),
+    (
+        "soft_occlusion",
+        "SOFT_OCCLUSION_SURE8",
+        &[("LUT_BLOCKS", "8"), ("SURE", "1")],
+    ),
 ];
 
 fn main() {

@@ -44,7 +44,10 @@ fn scenes() -> Vec<String> {
         "builtin:hairball".to_string(),
     ];
     let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets");
-    for m in ["ToyCar/ToyCar.gltf", "TransmissionTest/TransmissionTest.glb"] {
+    for m in [
+        "ToyCar/ToyCar.gltf",
+        "TransmissionTest/TransmissionTest.glb",
+    ] {
         let p = shared.join(m);
         if p.is_file() {
             s.push(p.display().to_string());
@@ -105,10 +108,26 @@ fn main() {
         let scene = EmbreeScene::from_scene(&desc.scene, eye, threads).expect("embree scene");
         let configs: Vec<(String, Light, SoftMode)> = vec![
             ("hard".into(), hard_light(&desc).unwrap(), SoftMode::Exact),
-            ("soft 128 exact".into(), bench_light(&desc, 128).unwrap(), SoftMode::Exact),
-            ("soft 128 lut".into(), bench_light(&desc, 128).unwrap(), SoftMode::Lut),
-            ("soft 1024 exact".into(), bench_light(&desc, 1024).unwrap(), SoftMode::Exact),
-            ("soft 1024 lut".into(), bench_light(&desc, 1024).unwrap(), SoftMode::Lut),
+            (
+                "soft 128 exact".into(),
+                bench_light(&desc, 128).unwrap(),
+                SoftMode::Exact,
+            ),
+            (
+                "soft 128 lut".into(),
+                bench_light(&desc, 128).unwrap(),
+                SoftMode::Lut,
+            ),
+            (
+                "soft 1024 exact".into(),
+                bench_light(&desc, 1024).unwrap(),
+                SoftMode::Exact,
+            ),
+            (
+                "soft 1024 lut".into(),
+                bench_light(&desc, 1024).unwrap(),
+                SoftMode::Lut,
+            ),
         ];
         for (config, light, mode) in configs {
             let (ours_ms, frame) = ours(&mut engine, &desc, &light, mode, repeats);
@@ -118,7 +137,10 @@ fn main() {
             let ls = &stats.lights[0].stats;
             let samples = stats.counters.view_samples;
             let mut best: Option<(f64, &'static str, embree::EmbreeShadows)> = None;
-            for (ray_mode, name) in [(RayMode::Single, "rtcOccluded1"), (RayMode::Packets8, "rtcOccluded8")] {
+            for (ray_mode, name) in [
+                (RayMode::Single, "rtcOccluded1"),
+                (RayMode::Packets8, "rtcOccluded8"),
+            ] {
                 let mut times = Vec::new();
                 let mut last = None;
                 for _ in 0..repeats {

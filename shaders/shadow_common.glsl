@@ -38,6 +38,12 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 #define COUNTER_CLIP_ITEMS 7
 // Soft occlusion: (view sample, caster) tests that blocked >= 1 light sample.
 #define COUNTER_BLOCKING 8
+// Soft occlusion, look-up mode: light-sample bits the table left unsure,
+// tested one by one (a 64-bit sum: low and high word).
+#define COUNTER_UNSURE_LO 9
+#define COUNTER_UNSURE_HI 10
+// Soft occlusion, look-up mode: (pair, block) entries of the unsure list.
+#define COUNTER_UNSURE_PAIRS 11
 #define COUNTER_COUNT 12
 
 // Frame-wide parameters (push constants).
@@ -46,11 +52,12 @@ struct LightPush {
     vec4 direction;    // xyz: directional light's travel direction
     uvec4 sizes;       // x: view samples, y: triangles, z: resolution, w: face count
     uvec4 more;        // x: pair capacity, y: tiles per row, z: tiles per face, w: occlusion units
-    vec4 dir_right;    // directional light's face basis: right
+    vec4 dir_right;    // directional light's face basis: right; w (soft look-up mode): capacity of the unsure list (uint bits)
     vec4 dir_up;       // and up (forward = direction)
     uvec4 soft;        // x: 128-sample block, y: light samples (0: hard shadows), z: LUT resolution, w: SOFT_* flags
     vec4 soft_light;   // x: light bounding radius R (light samples within R of origin), y: influence polygon degree,
-                       // z: global id of this run's triangle 0 (uint bits; triangle batches)
+                       // z: global id of this run's triangle 0 (uint bits; triangle batches),
+                       // w: look-up mode's rounding allowance LUT_ROUNDING, in light radii (soft_occlusion.comp)
 };
 #define SOFT_EXACT 1u
 

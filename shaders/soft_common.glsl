@@ -55,4 +55,27 @@ uint lut_index(vec3 n, float d, uint res) {
     return (uint(c.z) * res + uint(c.y)) * res + uint(c.x);
 }
 
+// lut_index in two steps, for several d with one normal: the normal's
+// cell (the index with k = 0), then the texel of d in it.
+uint lut_normal_cell(vec3 n, uint res) {
+    float r = float(res);
+    vec2 c = clamp(floor((oct_encode(n) + 1.0) * (0.5 * r)), vec2(0.0), vec2(r - 1.0));
+    return uint(c.y) * res + uint(c.x);
+}
+uint lut_texel(uint cell, float d, uint res) {
+    float r = float(res);
+    return uint(clamp(floor((d + 1.0) * (0.5 * r)), 0.0, r - 1.0)) * res * res + cell;
+}
+
+// The exact per-sample test (exact mode, and the look-up mode's unsure
+// bits): whether caster (a, b, c) hides light sample l from x, with the
+// caster's normal n = cross(b - a, c - a), sigma the side of x
+// (sign of dot(n, x - a)), the planes through x and each edge m0..m2 and
+// their orientation se (soft_occlusion.comp computes them). One function,
+// so that both modes evaluate the same f32 expressions.
+bool exact_blocks(vec3 l, vec3 n, float sigma, vec3 a, vec3 x, vec3 m0, vec3 m1, vec3 m2, float se) {
+    return sigma * dot(n, l - a) < 0.0 && se * dot(m0, l - x) > 0.0
+        && se * dot(m1, l - x) > 0.0 && se * dot(m2, l - x) > 0.0;
+}
+
 #endif

@@ -8,7 +8,10 @@
 // sphere (no look-up: a plane that leaves the whole sphere outside means T
 // blocks nothing); then each plane's bits are looked up in the LUT, every
 // 128-sample block with the same index (LUT mode, all blocks in one pass),
-// or every light sample of one block is tested (EXACT, one pass per block).
+// or every light sample of one block is tested (EXACT, one pass per block),
+// or (SURE, the default mode: the masks of EXACT, all blocks in one pass)
+// the table bounds each plane's bits from both sides and only the bits it
+// leaves unsure are tested as EXACT tests them (see SURE_BLOCK).
 // The OR over casters goes into x's mask with one atomic OR per word; a
 // sample whose every light sample is blocked stops early. Closed meshes
 // block only light samples behind their oriented plane (the back-face rule
@@ -20,7 +23,7 @@
 #include "soft_common.glsl"
 layout(local_size_x = 64) in;
 // Compiled once per variant (build.rs): EXACT=1, or LUT_BLOCKS=1..8 (the
-// light's 128-sample blocks). Code of the other mode and of unused blocks
+// light's 128-sample blocks) with SURE=0 or 1. Code of the other mode and of unused blocks
 // is compiled out, not branched over: lavapipe pays for guarded code it
 // does not run (measured: 3.4 s against 1.7 s for one block).
 #ifndef EXACT
@@ -29,6 +32,11 @@ layout(local_size_x = 64) in;
 #ifndef LUT_BLOCKS
 #define LUT_BLOCKS 1
 #endif
+#ifndef SURE
+#define SURE 0
+#endif
+// The masks of exact mode (per-sample tests, with their rounding margins).
+#define EXACT_MASKS (EXACT != 0 || SURE != 0)
 #if EXACT
 #define BLOCKS 1
 #else
@@ -83,9 +91,13 @@ layout(set = 0, binding = 7) buffer Masks { uint masks[]; };         // per list
 layout(set = 0, binding = 8) buffer Counters { uint counters[]; };
 layout(set = 0, binding = 9) readonly buffer UnitOffsets { uint unit_offsets[]; };
 layout(set = 0, binding = 11) uniform usamplerBuffer lut_tb;         // LUT, all blocks
+// SURE mode: the (slot, triangle, block) and unsure bits of each pair whose
+// bits the table leaves unsure, for soft_occlusion_unsure.comp.
+layout(set = 0, binding = 12) writeonly buffer UnsureList { uvec4 unsure_list[]; };
 #include "soft_occlusion_units.glsl"
 
 #define LUT_ALL 0xffffffffu
+#define LUT_NONE 0xfffffffeu
 
 // A plane's LUT code: LUT_ALL when the whole light is behind it (d >= 1),
 // else its texel.
@@ -93,8 +105,42 @@ uint plane_code(vec3 u, float d) {
     return d >= 1.0 ? LUT_ALL : lut_index(u, d, pc.soft.z);
 }
 
+// SURE mode: the flags of a plane at d outside the table's range [-1, 1)
+// (lut_texel clamps it): at d >= 1 its clamped texel's "some" misses
+// samples (every sample may be behind: maybe all), and past 1 + the
+// rounding allowance every sample is certainly behind; below -1 its
+// texel's "every" may claim samples that are not behind (sure none).
+#define BOUND_MAYBE_ALL 1u
+#define BOUND_SURE_ALL 2u
+#define BOUND_SURE_NONE 4u
+// 64 f32 ulps: the rounding bound of a per-sample test, per unit of the
+// magnitudes it involves.
+#define ROUNDING_BOUND (64.0 * 1.1920929e-7)
+uint bound_flags(float d) {
+    return (d >= 1.0 ? BOUND_MAYBE_ALL : 0u)
+        | (d >= 1.0 + pc.soft_light.w + 1e-6 ? BOUND_SURE_ALL : 0u)
+        | (d < -1.0 ? BOUND_SURE_NONE : 0u);
+}
+
 uvec4 lut_bits(uint code, uint block) {
-    return code == LUT_ALL ? uvec4(0xffffffffu) : texelFetch(lut_tb, int(code * uint(BLOCKS) + block));
+    return code == LUT_ALL ? uvec4(0xffffffffu)
+        : (code == LUT_NONE ? uvec4(0u) : texelFetch(lut_tb, int(code * uint(BLOCKS) + block)));
+}
+
+uint bit_count(uvec4 v) {
+    return uint(bitCount(v.x) + bitCount(v.y) + bitCount(v.z) + bitCount(v.w));
+}
+
+// SURE mode: a plane's bounds in block `block`: the bits certainly behind
+// it (x) and possibly behind it (y), from its texel's two masks (adjacent:
+// one fetch's cache line) and its flags (bound_flags).
+uvec4 bounds_sure(uint texel, uint flags, uint block) {
+    uvec4 every = texelFetch(lut_tb, int(2u * (texel * uint(BLOCKS) + block)));
+    return (flags & BOUND_SURE_ALL) != 0u ? uvec4(0xffffffffu) : ((flags & BOUND_SURE_NONE) != 0u ? uvec4(0u) : every);
+}
+uvec4 bounds_maybe(uint texel, uint flags, uint block) {
+    uvec4 some = texelFetch(lut_tb, int(2u * (texel * uint(BLOCKS) + block) + 1u));
+    return (flags & BOUND_MAYBE_ALL) != 0u ? uvec4(0xffffffffu) : some;
 }
 
 // LUT mode, block K: the AND of the four planes' bits, ORed into acc_K.
@@ -122,6 +168,44 @@ uvec4 past_end(uint block) {
         valid.w >= 32u ? 0u : ~((1u << valid.w) - 1u));
 }
 
+// SURE mode, block K. The table's texel (n_t, d_t) holds the samples with
+// n_t.y < d_t - w ("every") and n_t.y < d_t + w ("some"), w =
+// plane_lut::bounds_margin: the cell's normal radius, half a cell of d and
+// the rounding allowance LUT_ROUNDING. For a plane (u, d) of that cell,
+// |n_t.y - u.y| and |d_t - d| stay within the first two, and the exact
+// per-sample test differs from "u.y < d" by at most the pair's rounding
+// bound (delta_a, delta_x) when that is within the allowance: so "every"
+// is blocked by that plane as the exact test sees it, and outside "some"
+// it is not. Over the four planes: `sure` is blocked, `maybe` possibly;
+// bits earlier casters blocked are left out (the OR does not need them
+// again), and the pair's unsure bits go to a list that
+// soft_occlusion_unsure.comp tests exactly. Nothing is tested here: on
+// lavapipe every branch's code runs for every lane, tested or not.
+#define SURE_BLOCK(K)                                                        \
+    {                                                                        \
+        uvec4 sure = bounds_sure(lt0, lf0, uint(K)) & bounds_sure(lt1, lf1, uint(K)) \
+            & bounds_sure(lt2, lf2, uint(K)) & bounds_sure(lt3, lf3, uint(K));   \
+        uvec4 maybe = bounds_maybe(lt0, lf0, uint(K)) & bounds_maybe(lt1, lf1, uint(K)) \
+            & bounds_maybe(lt2, lf2, uint(K)) & bounds_maybe(lt3, lf3, uint(K)); \
+        if (rounding_too_large) {                                            \
+            sure = uvec4(0u);                                                \
+            maybe = uvec4(0xffffffffu);                                      \
+        }                                                                    \
+        maybe &= ~acc##K;                                                    \
+        sure &= maybe;                                                       \
+        uvec4 unsure = maybe & ~sure;                                        \
+        acc##K |= sure;                                                      \
+        hit = hit || sure != uvec4(0u);                                      \
+        if (unsure != uvec4(0u)) {                                           \
+            unsure_bits += bit_count(unsure);                                \
+            uint e = atomicAdd(counters[COUNTER_UNSURE_PAIRS], 1u);          \
+            if (e < floatBitsToUint(pc.dir_right.w)) {                       \
+                unsure_list[2u * e] = uvec4(s, ids.x, uint(K), 0u);          \
+                unsure_list[2u * e + 1u] = unsure;                           \
+            }                                                                \
+        }                                                                    \
+    }
+
 #define FLUSH_BLOCK(K)                                                       \
     if (acc##K != init##K) {                                                 \
         uint w = s * words + (first_block + uint(K)) * 4u;                      \
@@ -140,7 +224,7 @@ void main() {
     OcclusionUnit un = occlusion_unit();
     uint begin = un.pair_begin, end = un.pair_end, s = un.slot;
     uvec2 texel = un.texel;
-    uint tests = 0u, blocking = 0u;
+    uint tests = 0u, blocking = 0u, unsure_bits = 0u;
     uint words = light_blocks() * 4u;
     // LUT mode: every block in this pass; exact: block pc.soft.x only.
     uint first_block = EXACT != 0 ? pc.soft.x : 0u;
@@ -154,7 +238,12 @@ void main() {
         // Exact mode rejects a plane only beyond its rounding (1e-5 of
         // the distance in light radii), so that it never drops a light
         // sample that the per-sample test would block.
-        float lo_x = EXACT != 0 ? -1.0 - 1e-5 * (1.0 + length(ox) * inv_r) : -1.0;
+        float lo_x = EXACT_MASKS ? -1.0 - 1e-5 * (1.0 + length(ox) * inv_r) : -1.0;
+#if SURE
+        // The rounding bound of the per-sample test against the planes
+        // through x, in light radii: 64 f32 ulps of the magnitudes involved.
+        float delta_x = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(x) + length(ox)) * inv_r;
+#endif
         FOR_BLOCKS(ACC_BLOCK)
         for (uint k = begin; k < end; k++) {
             uint pi = texelFetch(tile_pairs_tb, int(k)).x;
@@ -182,7 +271,7 @@ void main() {
             vec3 ns = (sigma * inversesqrt(dot(n, n))) * n;
             vec3 ao = a - o;
             float d0 = dot(ns, ao) * inv_r;
-            float lo_a = EXACT != 0 ? -1.0 - 1e-5 * (1.0 + length(ao) * inv_r) : -1.0;
+            float lo_a = EXACT_MASKS ? -1.0 - 1e-5 * (1.0 + length(ao) * inv_r) : -1.0;
             if (!(d0 > lo_a)) {
                 continue; // the whole light is on x's side of T
             }
@@ -200,7 +289,16 @@ void main() {
             float d3 = dot(u2, ox) * inv_r;
             if (!(d3 > lo_x)) continue;
             bool hit = false;
-#if !EXACT
+#if SURE
+            float delta_a = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(a) + length(ao)) * inv_r;
+            bool rounding_too_large = max(delta_a, delta_x) > pc.soft_light.w;
+            uint res = pc.soft.z;
+            uint lt0 = lut_texel(lut_normal_cell(ns, res), d0, res), lf0 = bound_flags(d0);
+            uint lt1 = lut_texel(lut_normal_cell(u0, res), d1, res), lf1 = bound_flags(d1);
+            uint lt2 = lut_texel(lut_normal_cell(u1, res), d2, res), lf2 = bound_flags(d2);
+            uint lt3 = lut_texel(lut_normal_cell(u2, res), d3, res), lf3 = bound_flags(d3);
+            FOR_BLOCKS(SURE_BLOCK)
+#elif !EXACT
             uint c0 = plane_code(ns, d0), c1 = plane_code(u0, d1);
             uint c2 = plane_code(u1, d2), c3 = plane_code(u2, d3);
             FOR_BLOCKS(LUT_BLOCK)
@@ -211,8 +309,7 @@ void main() {
             uvec4 bits = uvec4(0u);
             for (uint j = 0u; j < n_block; j++) {
                 vec3 l = light_samples[base + j].xyz;
-                if (sigma * dot(n, l - a) < 0.0 && se * dot(m0, l - x) > 0.0
-                    && se * dot(m1, l - x) > 0.0 && se * dot(m2, l - x) > 0.0) {
+                if (exact_blocks(l, n, sigma, a, x, m0, m1, m2, se)) {
                     uint w = j >> 5u, bit = 1u << (j & 31u);
                     bits |= uvec4(w == 0u ? bit : 0u, w == 1u ? bit : 0u, w == 2u ? bit : 0u, w == 3u ? bit : 0u);
                 }
@@ -233,8 +330,14 @@ void main() {
     }
     uint sum_tests = subgroupAdd(tests);
     uint sum_blocking = subgroupAdd(blocking);
-    if (subgroupElect() && (sum_tests | sum_blocking) != 0u) {
+    uint sum_unsure = subgroupAdd(unsure_bits);
+    if (subgroupElect() && (sum_tests | sum_blocking | sum_unsure) != 0u) {
         atomicAdd(counters[COUNTER_TESTS], sum_tests);
         atomicAdd(counters[COUNTER_BLOCKING], sum_blocking);
+        // A 64-bit sum in two words: the carry of the low word.
+        uint before = atomicAdd(counters[COUNTER_UNSURE_LO], sum_unsure);
+        if (before + sum_unsure < before) {
+            atomicAdd(counters[COUNTER_UNSURE_HI], 1u);
+        }
     }
 }

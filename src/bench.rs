@@ -117,6 +117,10 @@ impl Config {
                 mode: SoftMode::Lut,
                 ..
             } => "ours-lut",
+            Config::Ours {
+                mode: SoftMode::Approx,
+                ..
+            } => "ours-approx",
             Config::Ours { .. } => "ours-exact",
             Config::Pcf { .. } => "pcf",
             Config::Pcss { .. } => "pcss",
@@ -140,7 +144,9 @@ impl Config {
                 lut_resolution,
                 mode,
             } => match mode {
-                SoftMode::Lut => format!("samples={samples} lut={lut_resolution}"),
+                SoftMode::Lut | SoftMode::Approx => {
+                    format!("samples={samples} lut={lut_resolution}")
+                }
                 SoftMode::Exact => format!("samples={samples}"),
             },
             Config::Pcf { resolution, kernel } | Config::Pcss { resolution, kernel } => {
@@ -209,16 +215,13 @@ fn sweep(quick: bool) -> Vec<Config> {
         return c;
     }
     for samples in [32, 128, 512, 1024] {
-        c.push(Config::Ours {
-            samples,
-            mode: SoftMode::Lut,
-            lut_resolution: 128,
-        });
-        c.push(Config::Ours {
-            samples,
-            mode: SoftMode::Exact,
-            lut_resolution: 128,
-        });
+        for mode in [SoftMode::Lut, SoftMode::Exact, SoftMode::Approx] {
+            c.push(Config::Ours {
+                samples,
+                mode,
+                lut_resolution: 128,
+            });
+        }
     }
     for lut_resolution in [64, 256] {
         c.push(Config::Ours {

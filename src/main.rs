@@ -31,8 +31,11 @@ enum Command {
     /// Point and directional lights use the alias-free hard-shadow passes;
     /// lights with extent (sphere, ellipsoid, disk, rect, explicit samples)
     /// the soft-shadow passes: light-sample bitmasks from a plane look-up
-    /// texture (`--mode lut`, the default) or from testing every light
-    /// sample (`--mode exact`).
+    /// texture that bounds each plane's bits, with the unsure light samples
+    /// tested exactly (`--mode lut`, the default: the masks of exact mode),
+    /// from testing every light sample (`--mode exact`), or from the
+    /// nearest texel's plane alone (`--mode approx`, the paper's look-up:
+    /// faster, wrong near planes).
     Render(RenderArgs),
     /// Render a scene with the CPU ray-casting oracle (the reference).
     Reference(RenderArgs),
@@ -122,8 +125,10 @@ struct RenderArgs {
     /// Light-texel map resolution (overrides [shadows] light_texels and soft_light_texels).
     #[arg(long)]
     light_texels: Option<u32>,
-    /// Soft-shadow mode: lut or exact (overrides [shadows] mode).
-    #[arg(long, value_parser = ["lut", "exact"])]
+    /// Soft-shadow mode: lut (exact masks through the look-up texture, the
+    /// default), exact (every light sample tested) or approx (nearest-texel
+    /// look-up) (overrides [shadows] mode).
+    #[arg(long, value_parser = ["lut", "exact", "approx"])]
     mode: Option<String>,
     /// Plane look-up texture resolution (overrides [shadows] lut_resolution).
     #[arg(long)]
@@ -172,6 +177,8 @@ impl RenderArgs {
         if let Some(m) = &self.mode {
             desc.shadows.mode = if m == "exact" {
                 SoftMode::Exact
+            } else if m == "approx" {
+                SoftMode::Approx
             } else {
                 SoftMode::Lut
             };

@@ -72,6 +72,11 @@ pub struct SoftStats {
     /// per light shape and reused: its time, `ms.lut_build`, appears only
     /// in the frame that built it).
     pub lut_built: bool,
+    /// Look-up mode: (test, light sample) bits the table left unsure, which
+    /// the exact per-sample test decided, and their share of all the tests'
+    /// bits (tests × light samples).
+    pub unsure_bits: u64,
+    pub unsure_share: f64,
 }
 
 impl ShadowStats {
@@ -100,6 +105,7 @@ impl ShadowStats {
             ms.insert(t.name.clone(), v);
         }
         let texels = (faces as f64 * (resolution as f64).powi(2)).max(1.0);
+        let unsure = c[counter::UNSURE_LO] as u64 | (c[counter::UNSURE_HI] as u64) << 32;
         ShadowStats {
             light_texels: resolution,
             light_faces: faces,
@@ -124,11 +130,14 @@ impl ShadowStats {
             wall_ms: None,
             soft: soft.map(|sl| SoftStats {
                 light_samples: sl.samples.len(),
-                mode: if sl.exact { "exact" } else { "lut" }.into(),
+                mode: sl.mode.name().into(),
                 lut_resolution: sl.lut_resolution,
                 blocking_tests: c[counter::BLOCKING],
                 blocking_share: c[counter::BLOCKING] as f64 / c[counter::TESTS].max(1) as f64,
                 lut_built: out.soft.as_ref().is_some_and(|s| s.lut_built),
+                unsure_bits: unsure,
+                unsure_share: unsure as f64
+                    / (c[counter::TESTS] as f64 * sl.samples.len() as f64).max(1.0),
             }),
         }
     }

@@ -425,6 +425,8 @@ struct Tally {
     pairs: u64,
     disagree: u64,
     in_band: u64,
+    /// Soft cases: mask words of look-up mode compared with exact mode's.
+    lut_words: u64,
     /// The first few disagreements outside the bands, for the failure message.
     examples: Vec<String>,
 }
@@ -484,6 +486,29 @@ fn run_case(engine: &mut Engine, c: &Case) -> Result<Tally, String> {
             let r = engine
                 .soft_shadows(&b.scene, b.eye, &b.samples, &b.light, &settings)
                 .map_err(|e| format!("soft_shadows failed: {e}"))?;
+            // Look-up mode (the default) must give exact mode's masks, word
+            // for word.
+            let lut = engine
+                .soft_shadows(
+                    &b.scene,
+                    b.eye,
+                    &b.samples,
+                    &b.light,
+                    &ShadowSettings {
+                        mode: SoftMode::Lut,
+                        ..settings
+                    },
+                )
+                .map_err(|e| format!("soft_shadows (look-up mode) failed: {e}"))?;
+            if let Some(w) = (0..r.visible.len()).find(|&w| r.visible[w] != lut.visible[w]) {
+                return Err(format!(
+                    "look-up mode differs from exact mode at mask word {w} (view sample {}): {:#x} against {:#x}",
+                    w / r.mask_words,
+                    lut.visible[w],
+                    r.visible[w]
+                ));
+            }
+            t.lut_words = r.visible.len() as u64;
             let ls = engine_light_positions(&b.light, b.eye);
             let want = oracle.visibility_masks(&view, &LightSamples::Positions(ls.clone()));
             for (i, s) in b.samples.iter().enumerate() {
@@ -542,11 +567,12 @@ fn random_scenes_agree_with_the_oracle_outside_the_epsilon_bands() {
         all.pairs += t.pairs;
         all.disagree += t.disagree;
         all.in_band += t.in_band;
+        all.lut_words += t.lut_words;
         Ok(())
     });
     let all = total.borrow().clone();
     eprintln!(
-        "{} random cases ({} hard, {} soft; seed {seed}) in {:.1} s: {} pairs, {} disagree, {} of them within the epsilon bands ({:.2e} of the pairs disagree)",
+        "{} random cases ({} hard, {} soft; seed {seed}) in {:.1} s: {} pairs, {} disagree, {} of them within the epsilon bands ({:.2e} of the pairs disagree); look-up mode equal to exact mode on {} mask words",
         all.cases,
         all.hard_cases,
         all.cases - all.hard_cases,
@@ -554,7 +580,8 @@ fn random_scenes_agree_with_the_oracle_outside_the_epsilon_bands() {
         all.pairs,
         all.disagree,
         all.in_band,
-        all.disagree as f64 / all.pairs.max(1) as f64
+        all.disagree as f64 / all.pairs.max(1) as f64,
+        all.lut_words
     );
     if let Err(e) = result {
         panic!("{e}");

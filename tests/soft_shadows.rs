@@ -85,7 +85,7 @@ fn visible_samples_match_the_brute_force_twin() {
         let view = engine_view_samples(&oracle, &desc);
         let light = sphere_light(&desc, samples);
         let tris = render::user_gpu_triangles(&desc.scene, eye, &view.samples);
-        for mode in [SoftMode::Lut, SoftMode::Exact] {
+        for mode in [SoftMode::Approx, SoftMode::Lut, SoftMode::Exact] {
             let settings = ShadowSettings {
                 mode,
                 lut_resolution: 48,
@@ -125,9 +125,11 @@ fn visible_samples_match_the_brute_force_twin() {
                         let exact = blocked_bits(p, *v, *closed, c, rad, n_light, &exact_bits);
                         let Some(exact) = exact else { continue };
                         let hides = exact.iter().any(|b| b.iter().any(|&w| w != 0));
+                        // Look-up mode gives exact mode's masks; the
+                        // approximate mode, the nearest texel's bits.
                         let b = match mode {
-                            SoftMode::Exact => exact,
-                            SoftMode::Lut => {
+                            SoftMode::Exact | SoftMode::Lut => exact,
+                            SoftMode::Approx => {
                                 blocked_bits(p, *v, *closed, c, rad, n_light, &bits).unwrap()
                             }
                         };

@@ -437,7 +437,11 @@ pub fn light_shadows(
 impl EmbreeScene {
     /// The scene's triangles, relative to `eye` (what the engine gets), with
     /// the scene's [`default_offset`].
-    pub fn from_scene(scene: &crate::scene::Scene, eye: glam::DVec3, threads: usize) -> Result<Self> {
+    pub fn from_scene(
+        scene: &crate::scene::Scene,
+        eye: glam::DVec3,
+        threads: usize,
+    ) -> Result<Self> {
         let tris: Vec<[Vec3; 3]> = scene
             .triangles()
             .iter()

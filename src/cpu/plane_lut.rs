@@ -98,9 +98,245 @@ pub fn build_lut(normalized: &[Vec3], res: u32) -> Vec<BlockBits> {
     lut
 }
 
+/// An upper bound of the distance between a unit normal and the normal at
+/// the centre of its table cell (the octahedral cell of a `res`³ table it
+/// falls in, [`lut_index`]), over every cell. The look-up mode's bound:
+/// for a plane (u, d) looked up at its cell's centre plane (n_t, d_t),
+/// |n_t·y − u·y| ≤ this for every light sample (|y| ≤ 1).
+///
+/// The decode maps each cell onto its spherical patch one to one, so the
+/// point of the patch farthest from the centre normal is the image of a
+/// point of the cell's boundary: the boundary is sampled (64 points per
+/// side, in f64) and the decode's Lipschitz bound (4.5 per unit of
+/// octahedral coordinates) covers what lies between two samples, plus
+/// 1e-6 for the f32 rounding of the centre normal and of the encode. The
+/// octahedral map's mirror symmetries in x and y leave one quadrant of the
+/// cells to visit. Cached per resolution.
+pub fn normal_radius(res: u32) -> f32 {
+    static CACHE: std::sync::Mutex<Vec<(u32, f32)>> = std::sync::Mutex::new(Vec::new());
+    let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(&(_, r)) = cache.iter().find(|(r, _)| *r == res) {
+        return r;
+    }
+    const STEPS: usize = 64;
+    let step = 2.0 / res as f64;
+    let decode = |x: f64, y: f64| {
+        let mut n = glam::DVec3::new(x, y, 1.0 - x.abs() - y.abs());
+        if n.z < 0.0 {
+            let (a, b) = (n.x, n.y);
+            n.x = (1.0 - b.abs()) * if a >= 0.0 { 1.0 } else { -1.0 };
+            n.y = (1.0 - a.abs()) * if b >= 0.0 { 1.0 } else { -1.0 };
+        }
+        n.normalize()
+    };
+    let first = (res / 2).saturating_sub(1);
+    let mut worst = 0.0f64;
+    for j in first..res {
+        for i in first..res {
+            let (n, _) = lut_texel_plane(i, j, 0, res);
+            let centre = n.as_dvec3();
+            let (x0, y0) = (-1.0 + i as f64 * step, -1.0 + j as f64 * step);
+            for k in 0..=STEPS {
+                let t = k as f64 / STEPS as f64 * step;
+                for (x, y) in [
+                    (x0 + t, y0),
+                    (x0 + t, y0 + step),
+                    (x0, y0 + t),
+                    (x0 + step, y0 + t),
+                ] {
+                    worst = worst.max(decode(x, y).distance(centre));
+                }
+            }
+        }
+    }
+    let r = (worst + 4.5 * step / STEPS as f64 / 2.0 + 1e-6) as f32;
+    cache.push((res, r));
+    r
+}
+
+/// The look-up mode's quantization bound for a `res`³ table, in light
+/// radii: a plane's distance from its cell's centre plane's, over every
+/// light sample: the normal radius ([`normal_radius`]), half a cell of d
+/// (1 / `res`) and 2e-6 for the f32 comparisons of the table's build.
+pub fn lut_quantization(res: u32) -> f32 {
+    normal_radius(res) + 1.0 / res as f32 + 2e-6
+}
+
+/// The look-up mode's allowance for the rounding of the exact per-sample
+/// test, in light radii: a pair whose rounding bound (64 f32 ulps of the
+/// magnitudes involved, per light radius) passes it has all its bits tested
+/// exactly instead (`soft_occlusion.comp`, `rounding_too_large`).
+pub const LUT_ROUNDING: f32 = 1e-3;
+
+/// The margin of the look-up mode's table: the quantization of a `res`³
+/// table ([`lut_quantization`]) plus [`LUT_ROUNDING`].
+pub fn bounds_margin(res: u32) -> f32 {
+    lut_quantization(res) + LUT_ROUNDING
+}
+
+/// The d of the centre of cell `k` of `res`, in f32 as
+/// [`lut_texel_plane`] computes it.
+fn cell_centre(k: u32, res: u32) -> f32 {
+    let step = 2.0 / res as f32;
+    -1.0 + (k as f32 + 0.5) * step
+}
+
+/// The look-up mode's table: per texel (index as [`lut_index`]), then per
+/// 128-sample block, two masks: `[every, some]` at `2 · (texel · blocks +
+/// block)`: the normalized samples y with n_t·y < d_t − w ("every") and
+/// with n_t·y < d_t + w ("some"), (n_t, d_t) the texel's centre plane and
+/// w = [`bounds_margin`] (all in f32). For a plane (u, d) in the texel's
+/// cell, "every" holds samples certainly behind it and samples outside
+/// "some" are certainly not (`soft_occlusion.comp`, SURE_BLOCK).
+///
+/// Built in parallel over the normal cells: each sample's first d cell in
+/// each mask (a binary search on the same f32 comparison: the masks grow
+/// with d), put in buckets, then a running OR over d, so the work is
+/// O(cells · samples) rather than O(texels · samples).
+pub fn build_bounds_lut(normalized: &[Vec3], res: u32) -> Vec<BlockBits> {
+    use rayon::prelude::*;
+    let nb = blocks(normalized.len());
+    let w = bounds_margin(res);
+    let r = res as usize;
+    let mut lut = vec![[0u32; 4]; r * r * r * nb * 2];
+    struct Out(*mut BlockBits);
+    unsafe impl Sync for Out {}
+    let out = Out(lut.as_mut_ptr());
+    let out = &out;
+    // The first cell k in 0..=res where `below(k)` holds (res: none).
+    let first = |below: &dyn Fn(u32) -> bool| {
+        let (mut lo, mut hi) = (0u32, res);
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if below(mid) {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        lo
+    };
+    (0..res * res).into_par_iter().for_each(|cell| {
+        let (i, j) = (cell % res, cell / res);
+        let (n, _) = lut_texel_plane(i, j, 0, res);
+        let mut every = vec![[0u32; 4]; (r + 1) * nb];
+        let mut some = vec![[0u32; 4]; (r + 1) * nb];
+        for (s, y) in normalized.iter().enumerate() {
+            let t = n.dot(*y);
+            let ke = first(&|k| t < cell_centre(k, res) - w) as usize;
+            let ks = first(&|k| t < cell_centre(k, res) + w) as usize;
+            let (b, word, bit) = (s / 128, (s % 128) / 32, 1u32 << (s % 32));
+            every[ke * nb + b][word] |= bit;
+            some[ks * nb + b][word] |= bit;
+        }
+        let mut acc = vec![[[0u32; 4]; 2]; nb];
+        for k in 0..r {
+            let texel = (k * r + j as usize) * r + i as usize;
+            for b in 0..nb {
+                for word in 0..4 {
+                    acc[b][0][word] |= every[k * nb + b][word];
+                    acc[b][1][word] |= some[k * nb + b][word];
+                }
+                // Texels of different normal cells never overlap.
+                unsafe {
+                    *out.0.add(2 * (texel * nb + b)) = acc[b][0];
+                    *out.0.add(2 * (texel * nb + b) + 1) = acc[b][1];
+                }
+            }
+        }
+    });
+    lut
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bounds_table_is_its_definition_and_brackets_every_plane() {
+        let ys: Vec<Vec3> = (0..200)
+            .map(|k| {
+                let t = k as f32;
+                Vec3::new((t * 0.37).sin(), (t * 0.91).cos(), (t * 0.13).sin()) * 0.55
+            })
+            .collect();
+        let res = 12;
+        let nb = 2;
+        let w = bounds_margin(res);
+        let lut = build_bounds_lut(&ys, res);
+        assert_eq!(lut.len(), 12 * 12 * 12 * nb * 2);
+        // Every bit is the f32 comparison that defines it.
+        for texel in 0..(res * res * res) as usize {
+            let t = texel as u32;
+            let (n, d) = lut_texel_plane(t % res, (t / res) % res, t / (res * res), res);
+            for (s, y) in ys.iter().enumerate() {
+                let at =
+                    |m: usize| lut[2 * (texel * nb + s / 128) + m][(s % 128) / 32] >> (s % 32) & 1;
+                assert_eq!(
+                    at(0) == 1,
+                    n.dot(*y) < d - w,
+                    "texel {texel}, sample {s}: every"
+                );
+                assert_eq!(
+                    at(1) == 1,
+                    n.dot(*y) < d + w,
+                    "texel {texel}, sample {s}: some"
+                );
+            }
+        }
+        // For planes anywhere in a cell, "every" is behind and outside
+        // "some" is not, by more than the rounding allowance.
+        let mut checked = 0;
+        for k in 0..3000 {
+            let t = k as f32 * 0.754_877;
+            let u = Vec3::new((t * 2.3).sin(), (t * 1.1).cos(), (t * 0.71).sin() - 0.1).normalize();
+            let d = (t * 0.37).sin() * 0.99;
+            let texel = lut_index(u, d, res) as usize;
+            for (s, y) in ys.iter().enumerate() {
+                let at =
+                    |m: usize| lut[2 * (texel * nb + s / 128) + m][(s % 128) / 32] >> (s % 32) & 1;
+                let v = u.dot(*y) - d;
+                if at(0) == 1 {
+                    assert!(
+                        v < -LUT_ROUNDING,
+                        "plane {u} {d}, sample {s}: every, u.y - d = {v}"
+                    );
+                }
+                if at(1) == 0 {
+                    assert!(
+                        v >= LUT_ROUNDING,
+                        "plane {u} {d}, sample {s}: not some, u.y - d = {v}"
+                    );
+                }
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 3000 * 200);
+    }
+
+    #[test]
+    fn normal_radius_bounds_every_cell() {
+        // Random unit normals: each lies within the bound of its cell's
+        // centre normal, and the bound is not wildly loose.
+        for res in [8, 31, 128] {
+            let r = normal_radius(res);
+            let mut seen = 0.0f32;
+            for k in 0..20000 {
+                let t = k as f32 * 0.618_034;
+                let n =
+                    Vec3::new((t * 3.1).sin(), (t * 1.7).cos(), (t * 0.37).sin() - 0.3).normalize();
+                let idx = lut_index(n, 0.0, res);
+                let (c, _) = lut_texel_plane(idx % res, (idx / res) % res, 0, res);
+                let d = n.distance(c);
+                assert!(
+                    d <= r,
+                    "res {res}: {n} is {d} from its cell's centre, bound {r}"
+                );
+                seen = seen.max(d);
+            }
+            assert!(r < 1.5 * seen + 0.01, "res {res}: bound {r}, seen {seen}");
+        }
+    }
 
     #[test]
     fn octahedral_round_trip_and_index() {

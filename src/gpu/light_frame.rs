@@ -4,9 +4,10 @@
 //! ([`Recording`]).
 
 use crate::cpu::light_view::LightView;
+use crate::cpu::plane_lut::lut_quantization;
 use crate::gpu::pass_clock::PassClock;
 use crate::gpu::shared::{LightPush, LIGHT_KIND_DIRECTIONAL, LIGHT_KIND_POINT};
-use crate::gpu::soft_light::SoftLight;
+use crate::gpu::soft_light::{SoftLight, SoftMode};
 use crate::vulkan::{BufferSlice, CommandRecorder, GpuContext};
 use crate::Result;
 
@@ -90,12 +91,20 @@ impl LightFrame {
                     0,
                     sl.samples.len() as u32,
                     sl.lut_resolution,
-                    u32::from(sl.exact),
+                    u32::from(sl.mode == SoftMode::Exact),
                 ],
                 None => [0; 4],
             },
             soft_light: match soft {
-                Some(sl) => [sl.bounds().1, sl.polygon_degree as f32, base, 0.0],
+                Some(sl) => [
+                    sl.bounds().1,
+                    sl.polygon_degree as f32,
+                    base,
+                    match sl.mode {
+                        SoftMode::Lut => lut_quantization(sl.lut_resolution),
+                        _ => 0.0,
+                    },
+                ],
                 None => [0.0, 0.0, base, 0.0],
             },
         };

@@ -119,7 +119,7 @@ impl LightPasses {
         let frame = LightFrame::new(inputs, light, resolution, soft);
         self.clock.restart(ctx);
         // §4.2: the plane look-up texture, built once per light shape.
-        let lut_built = match soft.filter(|sl| !sl.exact) {
+        let lut_built = match soft.filter(|sl| sl.uses_table()) {
             Some(sl) => self.plane_lut.ensure(ctx, &mut self.clock, sl)?,
             None => false,
         };
@@ -140,7 +140,7 @@ impl LightPasses {
         self.casters.record(r, &self.light_view.faces, counters)?;
         let (casters, lists) = (&self.casters, &self.texel_lists);
         self.tile_bin
-            .record_count(r, casters, lists, counters, soft.is_some())?;
+            .record_count(r, casters, lists, counters, soft)?;
         r.submit()?;
         // Only now is the number of binned pairs known: past the binding
         // limit, the triangles run again in smaller batches.
@@ -246,7 +246,7 @@ impl LightPasses {
             + self.resolve.result.len();
         if let Some(sl) = soft {
             buffer_bytes += self.soft_occlusion.blocked.len() + self.resolve.visible.len();
-            if !sl.exact {
+            if sl.uses_table() {
                 buffer_bytes += self.plane_lut.table().map_or(0, |t| t.size());
             }
         } else {

@@ -1,16 +1,21 @@
 //! The plane look-up texture (paper §4.2): for every plane of a grid over
 //! (octahedral normal, distance) in the light's normalized frame, the bits
 //! of the light samples behind it, one `[u32; 4]` per 128-sample block.
-//! Shader `plane_lut_build.comp`, one invocation per texel. It depends only
+//! Approximate mode: the bits of the texel's own plane (shader
+//! `plane_lut_build.comp`, one invocation per texel). Look-up mode: two
+//! masks per texel, the samples behind every plane of the texel's cell and
+//! behind some (with a margin for the exact test's rounding), built on the
+//! host ([`crate::cpu::plane_lut::build_bounds_lut`]) and uploaded. It depends only
 //! on the normalized samples and the resolution, so the last table built is
 //! kept across frames and rebuilt only when those change. CPU twin:
 //! [`crate::cpu::plane_lut`].
 
+use crate::cpu::plane_lut::build_bounds_lut;
 use crate::gpu::dispatch::{groups, RGBA32UI};
 use crate::gpu::pass_clock::PassClock;
 use crate::gpu::shaders;
 use crate::gpu::shared::LightPush;
-use crate::gpu::soft_light::{SoftLight, MAX_SOFT_SAMPLES};
+use crate::gpu::soft_light::{SoftLight, SoftMode, MAX_SOFT_SAMPLES};
 use crate::vulkan::{
     Barrier, Binding, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, DescriptorKind,
     GpuContext, GrowBuffer,
@@ -68,11 +73,14 @@ impl PlaneLutPass {
             .flat_map(|y| y.to_array().map(f32::to_bits))
             .collect();
         key.push(light.lut_resolution);
+        let bounds = light.mode == SoftMode::Lut;
+        key.push(u32::from(bounds));
         if self.table.as_ref().is_some_and(|l| l.key == key) {
             return Ok(false);
         }
         let res = light.lut_resolution as u64;
-        let texels = res.pow(3) * light.blocks() as u64;
+        // Look-up mode: two masks per texel and block (every, some).
+        let texels = res.pow(3) * light.blocks() as u64 * if bounds { 2 } else { 1 };
         let max_texels = ctx.info().limits.max_texel_buffer_elements as u64;
         if texels > max_texels {
             return Err(Error::InvalidInput(format!(
@@ -82,6 +90,16 @@ impl PlaneLutPass {
         }
         self.table = None; // the old table is freed before the new one is made
         let buffer = ctx.create_buffer(BufferDesc::storage("plane_lut", 16 * texels))?;
+        if bounds {
+            // Built on the host in parallel, O(cells · samples) (see
+            // build_bounds_lut), and uploaded.
+            clock.time(ctx, &mut ctx.begin()?, "lut_build", |_| {
+                let lut = build_bounds_lut(&ys, light.lut_resolution);
+                ctx.upload_staged(&buffer, 0, &lut)
+            })?;
+            self.table = Some(PlaneLut { key, buffer });
+            return Ok(true);
+        }
         let v: Vec<[f32; 4]> = ys.iter().map(|y| [y.x, y.y, y.z, 0.0]).collect();
         let ys_ubo = self.normalized.get(ctx, 16 * MAX_SOFT_SAMPLES as u64)?;
         ctx.upload_staged(ys_ubo, 0, &v)?;

@@ -157,6 +157,12 @@ pub mod counter {
     pub const CLIP_ITEMS: usize = 7;
     /// Soft occlusion: tests that blocked at least one light sample.
     pub const BLOCKING: usize = 8;
+    /// Soft occlusion, look-up mode: light-sample bits the table left
+    /// unsure and the exact test decided (low and high word of a u64).
+    pub const UNSURE_LO: usize = 9;
+    pub const UNSURE_HI: usize = 10;
+    /// Soft occlusion, look-up mode: (pair, block) entries with unsure bits.
+    pub const UNSURE_PAIRS: usize = 11;
     pub const COUNT: usize = 12;
 }
 

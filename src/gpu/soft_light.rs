@@ -1,6 +1,8 @@
 //! A light with extent as the soft-shadow passes see it (paper §4): its
 //! samples, camera-relative, and how the planes are evaluated.
 
+pub use crate::scene::file::SoftMode;
+
 /// Maximum number of light samples (`MAX_LIGHT_SAMPLES` in soft_common.glsl).
 pub const MAX_SOFT_SAMPLES: usize = 1024;
 
@@ -9,9 +11,8 @@ pub const MAX_SOFT_SAMPLES: usize = 1024;
 pub struct SoftLight {
     /// 1 to 1024 light samples, camera-relative.
     pub samples: Vec<glam::Vec3>,
-    /// Test every light sample against the planes instead of looking the
-    /// planes up (`mode = "exact"`).
-    pub exact: bool,
+    /// How the planes are evaluated ([`SoftMode`]).
+    pub mode: SoftMode,
     /// Plane look-up texture resolution (`lut_resolution`³ texels per block).
     pub lut_resolution: u32,
     /// Corners of the polygon that bounds the light's silhouette in the
@@ -40,6 +41,11 @@ impl SoftLight {
         // Rounded up, and never 0 (one sample): every |y| stays <= 1.
         let scale = c.abs().max_element().max(hi.abs().max_element()).max(1e-30);
         (c, (r * (1.0 + 1e-5)).max(scale * 1e-6))
+    }
+
+    /// Whether the mode looks planes up in the plane look-up texture.
+    pub fn uses_table(&self) -> bool {
+        self.mode != SoftMode::Exact
     }
 
     /// 128-sample blocks of the light.
@@ -71,7 +77,7 @@ impl SoftLight {
                 self.polygon_degree
             )));
         }
-        if !self.exact && !(2..=512).contains(&self.lut_resolution) {
+        if self.uses_table() && !(2..=512).contains(&self.lut_resolution) {
             return Err(InvalidInput(format!(
                 "lut_resolution must be in 2..=512, got {}",
                 self.lut_resolution

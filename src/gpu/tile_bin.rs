@@ -15,6 +15,7 @@ use crate::gpu::light_frame::Recording;
 use crate::gpu::scan::ScanPass;
 use crate::gpu::shaders;
 use crate::gpu::shared::LightPush;
+use crate::gpu::soft_light::{SoftLight, SoftMode};
 use crate::gpu::{casters::CasterPass, texel_lists::TexelListPass};
 use crate::vulkan::{
     Barrier, CommandRecorder, ComputePipeline, ComputePipelineDesc, DescriptorKind, GpuContext,
@@ -28,6 +29,14 @@ use crate::Result;
 /// loop iterations per invocation.
 pub const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
 
+/// Pairs per soft occlusion work unit in look-up mode with `blocks`
+/// 128-sample blocks: each test may loop over every light sample the table
+/// leaves unsure (at most 128 and 4 word steps per block), so that
+/// `chunk · (1 + 132 · blocks)` stays below 65535 loop iterations.
+pub fn sure_pair_chunk(blocks: u32) -> (u32, u32) {
+    (2, 65535 / (1 + 132 * blocks))
+}
+
 /// The binning passes' pipelines and the per-tile lists they build.
 pub struct TileBinPass {
     count: ComputePipeline,
@@ -36,6 +45,8 @@ pub struct TileBinPass {
     units_hard: ComputePipeline,
     /// Soft shadows' work units: one lane per listed sample of the tile.
     units_soft: ComputePipeline,
+    /// The same with the look-up mode's chunks, per block count (1 to 8).
+    units_sure: Vec<ComputePipeline>,
     scan: ScanPass,
     /// Per tile: binned pairs (count, then scatter cursor).
     tile_counts: GrowBuffer,
@@ -79,6 +90,16 @@ impl TileBinPass {
                 &[sb; 3],
                 &[SOFT_PAIR_CHUNK],
             )?,
+            units_sure: (1..=8)
+                .map(|b| {
+                    make(
+                        "tile_bin_units_sure",
+                        shaders::TILE_BIN_UNITS_SAMPLE_LANES,
+                        &[sb; 3],
+                        &[sure_pair_chunk(b)],
+                    )
+                })
+                .collect::<Result<_>>()?,
             scan: ScanPass::new(ctx)?,
             tile_counts: GrowBuffer::storage("tile_counts"),
             tile_offsets: GrowBuffer::storage("tile_offsets"),
@@ -113,7 +134,7 @@ impl TileBinPass {
         casters: &CasterPass,
         lists: &TexelListPass,
         counters: &GrowBuffer,
-        soft: bool,
+        soft: Option<&SoftLight>,
     ) -> Result<()> {
         let (pair_capacity, tiles) = (r.frame.pair_capacity, r.frame.tiles);
         r.pass("tile_bin_count", |rec, pc| {
@@ -127,10 +148,12 @@ impl TileBinPass {
             ];
             rec.dispatch(&self.count, &bindings, pc, groups(pair_capacity))?;
             rec.barrier(Barrier::ComputeToCompute);
-            let (units, per_tile) = if soft {
-                (&self.units_soft, &lists.offsets)
-            } else {
-                (&self.units_hard, &lists.tile_max_len)
+            let (units, per_tile) = match soft {
+                None => (&self.units_hard, &lists.tile_max_len),
+                Some(sl) if sl.mode == SoftMode::Lut => {
+                    (&self.units_sure[sl.blocks() - 1], &lists.offsets)
+                }
+                Some(_) => (&self.units_soft, &lists.offsets),
             };
             let bindings = [
                 storage(&self.tile_counts),

@@ -11,7 +11,7 @@ use crate::gpu::shared::{GpuTriangle, GpuViewSample};
 use crate::gpu::{gpu_inputs, SoftLight};
 use crate::light::{Light, LightShape};
 use crate::oracle::ViewSample;
-use crate::scene::file::{ShadowSettings, SoftMode};
+use crate::scene::file::ShadowSettings;
 use crate::scene::Scene;
 
 /// Corners of the polygon bounding the light's silhouette (influence regions).
@@ -33,7 +33,7 @@ pub fn soft_light(
     };
     let sl = SoftLight {
         samples: samples.iter().map(|p| (*p - eye).as_vec3()).collect(),
-        exact: settings.mode == SoftMode::Exact,
+        mode: settings.mode,
         lut_resolution: settings.lut_resolution,
         polygon_degree: INFLUENCE_POLYGON_DEGREE,
     };

@@ -15,11 +15,29 @@ use crate::{Error, Result};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SoftMode {
-    /// Bitmasks from the plane look-up texture (the paper's method).
+    /// The plane look-up texture bounds each plane's bits from both sides
+    /// and the light samples it leaves unsure are tested exactly: the masks
+    /// of [`SoftMode::Exact`], bit for bit, at nearly the look-up's speed.
     #[default]
     Lut,
-    /// Every light sample tested against the planes directly.
+    /// Every light sample tested against the planes directly (the twin of
+    /// the look-up mode).
     Exact,
+    /// The paper's nearest-texel look-up: each plane's bits are those of
+    /// the nearest table texel's plane, so light samples near a plane can
+    /// come out wrong (measured in the README).
+    Approx,
+}
+
+impl SoftMode {
+    /// The name in scene files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            SoftMode::Lut => "lut",
+            SoftMode::Exact => "exact",
+            SoftMode::Approx => "approx",
+        }
+    }
 }
 
 /// Engine settings (the `[shadows]` table); CLI flags override them.

@@ -1,0 +1,50 @@
+#version 450
+// Soft pass, look-up mode: the light samples the table left unsure for a
+// (view sample, caster) pair (soft_occlusion.comp with SURE), tested
+// exactly as exact mode tests every light sample, ORed into the view
+// sample's blocked mask. One invocation per entry of the unsure list.
+// Twin: cpu::soft_occlusion::blocked_bits (exact).
+#extension GL_GOOGLE_include_directive : require
+#define LIGHT_SAMPLES_BINDING 4
+#include "soft_common.glsl"
+layout(local_size_x = WORKGROUP_1D) in;
+
+layout(set = 0, binding = 0) uniform usamplerBuffer unsure_tb;       // 2 texels per entry
+layout(set = 0, binding = 1) uniform usamplerBuffer triangles_tb;    // GpuTriangle: 3 texels
+layout(set = 0, binding = 2) uniform usamplerBuffer list_samples_tb; // xyz float bits, w triangle id
+layout(set = 0, binding = 3) buffer Masks { uint masks[]; };         // per list slot: blocked bits
+
+void main() {
+    uint e = linear_invocation();
+    if (e >= pc.more.w) {
+        return;
+    }
+    uvec4 head = texelFetch(unsure_tb, int(2u * e));
+    uvec4 unsure = texelFetch(unsure_tb, int(2u * e + 1u));
+    uint s = head.x, tri = head.y, block = head.z;
+    vec3 x = uintBitsToFloat(texelFetch(list_samples_tb, int(s)).xyz);
+    vec3 a = uintBitsToFloat(texelFetch(triangles_tb, int(3u * tri)).xyz);
+    vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * tri + 1u)).xyz);
+    vec3 c = uintBitsToFloat(texelFetch(triangles_tb, int(3u * tri + 2u)).xyz);
+    // The same planes as soft_occlusion.comp computes.
+    vec3 n = cross(b - a, c - a);
+    float sigma = dot(n, x - a) > 0.0 ? 1.0 : -1.0;
+    vec3 m0 = cross(a - x, b - x), m1 = cross(b - x, c - x), m2 = cross(c - x, a - x);
+    float se = dot(m0, c - x) < 0.0 ? -1.0 : 1.0;
+    uint words = light_blocks() * 4u;
+    for (uint w = 0u; w < 4u; w++) {
+        uint left = w == 0u ? unsure.x : (w == 1u ? unsure.y : (w == 2u ? unsure.z : unsure.w));
+        uint got = 0u;
+        while (left != 0u) {
+            uint bit = uint(findLSB(left));
+            left &= left - 1u;
+            vec3 l = light_samples[block * 128u + w * 32u + bit].xyz;
+            if (exact_blocks(l, n, sigma, a, x, m0, m1, m2, se)) {
+                got |= 1u << bit;
+            }
+        }
+        if (got != 0u) {
+            atomicOr(masks[s * words + block * 4u + w], got);
+        }
+    }
+}

@@ -1,0 +1,145 @@
+//! Look-up mode (the default) against exact mode, mask word by mask word:
+//! the table only bounds each plane's bits and the bits it leaves unsure
+//! are tested as exact mode tests every light sample, so the two must give
+//! the same visible light samples, bit for bit, on every built-in scene and
+//! every shared model (`../shared/assets`, on a ground) with sphere, disk,
+//! rect and ellipsoid lights at 128, 256 and 1024 samples.
+
+use alias_free_shadows::bench::{bench_light, load_scene};
+use alias_free_shadows::light::{Light, LightShape};
+use alias_free_shadows::oracle::Oracle;
+use alias_free_shadows::render::Engine;
+use alias_free_shadows::scene::file::{ShadowSettings, SoftMode};
+use alias_free_shadows::vulkan::ContextOptions;
+use glam::{DVec2, DVec3};
+
+mod common;
+use common::engine_view_samples;
+
+const SIZE: u32 = 40;
+
+fn specs() -> Vec<String> {
+    let mut out: Vec<String> = alias_free_shadows::scene::builtin::NAMES
+        .iter()
+        .map(|n| format!("builtin:{n}"))
+        .collect();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets");
+    for m in [
+        "Lantern/Lantern.gltf",
+        "BoomBox/BoomBox.gltf",
+        "Suzanne/Suzanne.gltf",
+        "ToyCar/ToyCar.gltf",
+        "TransmissionTest/TransmissionTest.glb",
+        "StainedGlassLamp/StainedGlassLamp.gltf",
+    ] {
+        let p = root.join(m);
+        if p.is_file() {
+            out.push(p.display().to_string());
+        }
+    }
+    out
+}
+
+/// The four light kinds around the bench's sphere light (the scene's own,
+/// else one at its light a tenth of its distance across).
+fn lights(sphere: &Light) -> Vec<Light> {
+    let LightShape::Sphere { position, radius } = sphere.shape else {
+        unreachable!("the bench light is a sphere")
+    };
+    let toward = DVec3::new(0.2, -1.0, 0.1).normalize();
+    let tangent = DVec3::new(1.0, 0.0, 0.3).normalize();
+    [
+        sphere.shape.clone(),
+        LightShape::Disk {
+            position,
+            radius,
+            normal: toward,
+            tangent,
+        },
+        LightShape::Rect {
+            position,
+            size: DVec2::new(2.0 * radius, 0.8 * radius),
+            normal: toward,
+            tangent,
+        },
+        LightShape::Ellipsoid {
+            position,
+            semi_axes: DVec3::new(1.4, 0.5, 0.8) * radius,
+            normal: toward,
+            tangent,
+        },
+    ]
+    .into_iter()
+    .map(|shape| Light {
+        shape,
+        ..sphere.clone()
+    })
+    .collect()
+}
+
+#[test]
+fn look_up_mode_masks_equal_exact_mode() {
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let (mut words, mut configs) = (0u64, 0);
+    let (mut unsure, mut bits) = (0u64, 0f64);
+    for spec in specs() {
+        let desc = load_scene(&spec, SIZE).unwrap();
+        let eye = desc.camera.eye;
+        let oracle = Oracle::new(&desc.scene.triangles(), eye);
+        let view = engine_view_samples(&oracle, &desc);
+        for (k, light) in lights(&bench_light(&desc, 128).unwrap())
+            .into_iter()
+            .enumerate()
+        {
+            // Every kind at 128 samples; the sphere also at 256 and 1024.
+            let counts: &[u32] = if k == 0 { &[128, 256, 1024] } else { &[128] };
+            for &samples in counts {
+                let light = Light {
+                    samples,
+                    ..light.clone()
+                };
+                let run = |engine: &mut Engine, mode| {
+                    let settings = ShadowSettings {
+                        mode,
+                        ..Default::default()
+                    };
+                    engine
+                        .soft_shadows(&desc.scene, eye, &view.samples, &light, &settings)
+                        .unwrap()
+                };
+                let lut = run(&mut engine, SoftMode::Lut);
+                let exact = run(&mut engine, SoftMode::Exact);
+                assert_eq!(lut.visible.len(), exact.visible.len());
+                let differ = lut
+                    .visible
+                    .iter()
+                    .zip(&exact.visible)
+                    .filter(|(a, b)| a != b)
+                    .count();
+                let s = lut.stats.soft.as_ref().unwrap();
+                eprintln!(
+                    "{spec} {} {samples}: {} words, {differ} differ; {} unsure bits ({:.2e} of the tested bits)",
+                    ["sphere", "disk", "rect", "ellipsoid"][k],
+                    lut.visible.len(),
+                    s.unsure_bits,
+                    s.unsure_share
+                );
+                assert_eq!(
+                    differ, 0,
+                    "{spec}, light {k}, {samples} samples: look-up and exact masks differ"
+                );
+                assert_eq!(lut.visibility, exact.visibility);
+                words += lut.visible.len() as u64;
+                configs += 1;
+                unsure += s.unsure_bits;
+                bits += s.unsure_bits as f64 / s.unsure_share.max(1e-300);
+            }
+        }
+    }
+    eprintln!(
+        "{configs} configurations, {words} mask words equal; unsure bits {unsure} ({:.2e} of all tested bits)",
+        unsure as f64 / bits.max(1.0)
+    );
+    assert!(configs >= 7 * 6, "every built-in scene and light kind");
+    engine.context().check_validation().unwrap();
+}
