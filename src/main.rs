@@ -35,7 +35,9 @@ enum Command {
     /// tested exactly (`--mode lut`, the default: the masks of exact mode),
     /// from testing every light sample (`--mode exact`), or from the
     /// nearest texel's plane alone (`--mode approx`, the paper's look-up:
-    /// faster, wrong near planes).
+    /// faster, wrong near planes). Look-up mode's table is kept across runs
+    /// in `$XDG_CACHE_HOME/alias-free-shadows` (or `~/.cache/...`; set
+    /// `AFS_TABLE_CACHE` to another folder, or to 0 to keep none).
     Render(RenderArgs),
     /// Render a scene with the CPU ray-casting oracle (the reference).
     Reference(RenderArgs),
@@ -302,6 +304,7 @@ fn run(cli: Cli) -> Result<()> {
                 device: args.device.clone(),
                 ..Default::default()
             })?;
+            engine.set_table_cache(alias_free_shadows::gpu::plane_lut::table_cache::default_dir());
             let options = FrameOptions {
                 progress: !args.quiet,
             };

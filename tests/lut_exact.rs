@@ -143,3 +143,58 @@ fn look_up_mode_masks_equal_exact_mode() {
     assert!(configs >= 7 * 6, "every built-in scene and light kind");
     engine.context().check_validation().unwrap();
 }
+
+/// Look-up mode's table kept on disk: a second engine reads it instead of
+/// building it and gets the same masks; a file that does not hold the key
+/// (corrupted) is not used; at most `KEPT` files stay.
+#[test]
+fn the_table_is_kept_across_runs() {
+    use alias_free_shadows::gpu::plane_lut::table_cache::KEPT;
+    let dir = tempfile::tempdir().unwrap();
+    let desc = load_scene("builtin:demo", 24).unwrap();
+    let eye = desc.camera.eye;
+    let oracle = Oracle::new(&desc.scene.triangles(), eye);
+    let view = engine_view_samples(&oracle, &desc);
+    let settings = ShadowSettings::default();
+    let run = |light: &Light| {
+        let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+        engine.set_table_cache(Some(dir.path().to_path_buf()));
+        let r = engine
+            .soft_shadows(&desc.scene, eye, &view.samples, light, &settings)
+            .unwrap();
+        engine.context().check_validation().unwrap();
+        let built = r.stats.ms.contains_key("lut_build");
+        let read = r.stats.ms.contains_key("lut_read");
+        assert!(built != read, "{:?}", r.stats.ms);
+        (r, read)
+    };
+    let light = bench_light(&desc, 64).unwrap();
+    let (first, read) = run(&light);
+    assert!(!read, "a fresh cache has no table");
+    let (second, read) = run(&light);
+    assert!(read, "the second run reads the kept table");
+    assert_eq!(first.visible, second.visible);
+    // A corrupted file is rebuilt, with the same masks.
+    let file = std::fs::read_dir(dir.path())
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let mut bytes = std::fs::read(&file).unwrap();
+    bytes[20] ^= 1;
+    std::fs::write(&file, &bytes).unwrap();
+    let (third, read) = run(&light);
+    assert!(!read, "a file that does not hold the key is not used");
+    assert_eq!(first.visible, third.visible);
+    // Other lights: new files, the oldest go past KEPT.
+    for seed in 0..KEPT as u64 + 2 {
+        run(&Light {
+            seed: 100 + seed,
+            samples: 8,
+            ..light.clone()
+        });
+    }
+    let files = std::fs::read_dir(dir.path()).unwrap().count();
+    assert_eq!(files, KEPT);
+}

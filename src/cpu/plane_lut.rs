@@ -189,59 +189,67 @@ fn cell_centre(k: u32, res: u32) -> f32 {
 /// cell, "every" holds samples certainly behind it and samples outside
 /// "some" are certainly not (`soft_occlusion.comp`, SURE_BLOCK).
 ///
-/// Built in parallel over the normal cells: each sample's first d cell in
-/// each mask (a binary search on the same f32 comparison: the masks grow
-/// with d), put in buckets, then a running OR over d, so the work is
-/// O(cells · samples) rather than O(texels · samples).
+/// The masks grow with d, so each (normal cell, sample) has a first d cell
+/// per mask (from the f32 comparison, found in a step or two): samples go
+/// into buckets by it, and a running OR over d gives the masks, O(cells ·
+/// samples + texels) rather than O(texels · samples). Rows of normal cells
+/// (fixed j) run in parallel, each writing its texels, which are runs over
+/// i at each d, in order.
 pub fn build_bounds_lut(normalized: &[Vec3], res: u32) -> Vec<BlockBits> {
     use rayon::prelude::*;
     let nb = blocks(normalized.len());
     let w = bounds_margin(res);
     let r = res as usize;
+    let step = 2.0 / res as f32;
+    // The first cell k in 0..=res with t < centre(k) + shift (res: none):
+    // the real-valued solution, then the f32 comparison itself decides.
+    let first = |t: f32, shift: f32| -> usize {
+        let below = |k: u32| t < cell_centre(k, res) + shift;
+        let guess = ((t - shift + 1.0) / step - 0.5)
+            .floor()
+            .clamp(0.0, res as f32) as u32;
+        let mut k = guess;
+        while k > 0 && below(k - 1) {
+            k -= 1;
+        }
+        while k < res && !below(k) {
+            k += 1;
+        }
+        k as usize
+    };
     let mut lut = vec![[0u32; 4]; r * r * r * nb * 2];
     struct Out(*mut BlockBits);
     unsafe impl Sync for Out {}
     let out = Out(lut.as_mut_ptr());
     let out = &out;
-    // The first cell k in 0..=res where `below(k)` holds (res: none).
-    let first = |below: &dyn Fn(u32) -> bool| {
-        let (mut lo, mut hi) = (0u32, res);
-        while lo < hi {
-            let mid = (lo + hi) / 2;
-            if below(mid) {
-                hi = mid;
-            } else {
-                lo = mid + 1;
+    (0..res).into_par_iter().for_each(|j| {
+        // buckets[((i · (res + 1) + k) · nb + block) · 2 + mask]
+        let mut buckets = vec![[0u32; 4]; r * (r + 1) * nb * 2];
+        for i in 0..res {
+            let (n, _) = lut_texel_plane(i, j, 0, res);
+            for (s, y) in normalized.iter().enumerate() {
+                let t = n.dot(*y);
+                let (b, word, bit) = (s / 128, (s % 128) / 32, 1u32 << (s % 32));
+                let at = |k: usize, m: usize| ((i as usize * (r + 1) + k) * nb + b) * 2 + m;
+                buckets[at(first(t, -w), 0)][word] |= bit;
+                buckets[at(first(t, w), 1)][word] |= bit;
             }
         }
-        lo
-    };
-    (0..res * res).into_par_iter().for_each(|cell| {
-        let (i, j) = (cell % res, cell / res);
-        let (n, _) = lut_texel_plane(i, j, 0, res);
-        let mut every = vec![[0u32; 4]; (r + 1) * nb];
-        let mut some = vec![[0u32; 4]; (r + 1) * nb];
-        for (s, y) in normalized.iter().enumerate() {
-            let t = n.dot(*y);
-            let ke = first(&|k| t < cell_centre(k, res) - w) as usize;
-            let ks = first(&|k| t < cell_centre(k, res) + w) as usize;
-            let (b, word, bit) = (s / 128, (s % 128) / 32, 1u32 << (s % 32));
-            every[ke * nb + b][word] |= bit;
-            some[ks * nb + b][word] |= bit;
-        }
-        let mut acc = vec![[[0u32; 4]; 2]; nb];
+        let mut acc = vec![[0u32; 4]; r * nb * 2];
         for k in 0..r {
-            let texel = (k * r + j as usize) * r + i as usize;
-            for b in 0..nb {
-                for word in 0..4 {
-                    acc[b][0][word] |= every[k * nb + b][word];
-                    acc[b][1][word] |= some[k * nb + b][word];
+            for i in 0..r {
+                for bm in 0..nb * 2 {
+                    let src = buckets[(i * (r + 1) + k) * nb * 2 + bm];
+                    let a = &mut acc[i * nb * 2 + bm];
+                    for word in 0..4 {
+                        a[word] |= src[word];
+                    }
                 }
-                // Texels of different normal cells never overlap.
-                unsafe {
-                    *out.0.add(2 * (texel * nb + b)) = acc[b][0];
-                    *out.0.add(2 * (texel * nb + b) + 1) = acc[b][1];
-                }
+            }
+            // Texels (k, j, 0..res): one run. Rows never overlap.
+            let texel = (k * r + j as usize) * r;
+            unsafe {
+                std::ptr::copy_nonoverlapping(acc.as_ptr(), out.0.add(2 * texel * nb), r * nb * 2);
             }
         }
     });

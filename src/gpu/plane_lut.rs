@@ -29,6 +29,8 @@ pub struct PlaneLutPass {
     table: Option<PlaneLut>,
     /// The normalized samples the build reads (uniform buffer).
     normalized: GrowBuffer,
+    /// Where look-up mode's tables are kept across runs (None: not kept).
+    cache_dir: Option<std::path::PathBuf>,
 }
 
 /// A plane look-up texture on the device and what it was built from.
@@ -54,6 +56,7 @@ impl PlaneLutPass {
             })?,
             table: None,
             normalized: GrowBuffer::storage_uniform("normalized_light_samples"),
+            cache_dir: None,
         })
     }
 
@@ -91,11 +94,33 @@ impl PlaneLutPass {
         self.table = None; // the old table is freed before the new one is made
         let buffer = ctx.create_buffer(BufferDesc::storage("plane_lut", 16 * texels))?;
         if bounds {
-            // Built on the host in parallel, O(cells · samples) (see
-            // build_bounds_lut), and uploaded.
-            clock.time(ctx, &mut ctx.begin()?, "lut_build", |_| {
-                let lut = build_bounds_lut(&ys, light.lut_resolution);
-                ctx.upload_staged(&buffer, 0, &lut)
+            // Read from the cache on disk, else built on the host in
+            // parallel, O(cells · samples) (see build_bounds_lut), and kept
+            // there; then uploaded.
+            let cache = self
+                .cache_dir
+                .as_deref()
+                .map(|d| table_cache::path(d, &key));
+            let cached = cache
+                .as_deref()
+                .and_then(|p| table_cache::read(p, &key, texels));
+            let name = if cached.is_some() {
+                "lut_read"
+            } else {
+                "lut_build"
+            };
+            clock.time(ctx, &mut ctx.begin()?, name, |_| {
+                let lut = match cached {
+                    Some(lut) => lut,
+                    None => {
+                        let lut = build_bounds_lut(&ys, light.lut_resolution);
+                        if let Some(p) = &cache {
+                            table_cache::write(p, &key, &lut);
+                        }
+                        lut
+                    }
+                };
+                ctx.upload(&buffer, 0, &lut)
             })?;
             self.table = Some(PlaneLut { key, buffer });
             return Ok(true);
@@ -128,6 +153,11 @@ impl PlaneLutPass {
         Ok(true)
     }
 
+    /// Keeps look-up mode's tables in `dir` across runs (None: never).
+    pub fn set_cache_dir(&mut self, dir: Option<std::path::PathBuf>) {
+        self.cache_dir = dir;
+    }
+
     /// The current table (after [`PlaneLutPass::ensure`]).
     pub fn table(&self) -> Option<&Buffer> {
         self.table.as_ref().map(|t| &t.buffer)
@@ -150,5 +180,105 @@ impl PlaneLutPass {
             .chunks_exact(4)
             .map(|w| [w[0], w[1], w[2], w[3]])
             .collect())
+    }
+}
+
+/// Look-up mode's tables on disk, keyed by what they are built from (the
+/// normalized samples' bits, the resolution, the kind): a file per table,
+/// named by a hash of the key and holding the whole key, so a file is used
+/// only for exactly its key. At most [`table_cache::KEPT`] files stay (the
+/// oldest go); any failure to read or write is a warning, never an error
+/// (the table is then built).
+pub mod table_cache {
+    use std::path::{Path, PathBuf};
+
+    /// Files kept in the directory.
+    pub const KEPT: usize = 8;
+    const MAGIC: &[u8; 8] = b"AFSLUT01";
+
+    /// The directory tables go to by default: `AFS_TABLE_CACHE` (`0` or
+    /// `off`: none), else `$XDG_CACHE_HOME/alias-free-shadows`, else
+    /// `$HOME/.cache/alias-free-shadows`.
+    pub fn default_dir() -> Option<PathBuf> {
+        match std::env::var("AFS_TABLE_CACHE") {
+            Ok(v) if v == "0" || v == "off" => return None,
+            Ok(v) if !v.is_empty() => return Some(PathBuf::from(v)),
+            _ => {}
+        }
+        let base = std::env::var_os("XDG_CACHE_HOME")
+            .map(PathBuf::from)
+            .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
+        Some(base.join("alias-free-shadows"))
+    }
+
+    /// FNV-1a over the key's words.
+    fn hash(key: &[u32]) -> u64 {
+        key.iter()
+            .flat_map(|w| w.to_le_bytes())
+            .fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+                (h ^ b as u64).wrapping_mul(0x100_0000_01b3)
+            })
+    }
+
+    /// The file of the table of `key` in `dir`.
+    pub fn path(dir: &Path, key: &[u32]) -> PathBuf {
+        dir.join(format!("plane-lut-{:016x}.bin", hash(key)))
+    }
+
+    /// The table in `path` if it holds `key` and `texels` texels.
+    pub fn read(path: &Path, key: &[u32], texels: u64) -> Option<Vec<[u32; 4]>> {
+        let bytes = std::fs::read(path).ok()?;
+        let head = 8 + 4 + 4 * key.len();
+        let ok = bytes.len() as u64 == head as u64 + 16 * texels
+            && &bytes[..8] == MAGIC
+            && bytes[8..12] == (key.len() as u32).to_le_bytes()
+            && bytes[12..head]
+                .chunks_exact(4)
+                .zip(key)
+                .all(|(b, k)| b == k.to_le_bytes());
+        if !ok {
+            log::warn!("{}: not the table wanted; building it", path.display());
+            return None;
+        }
+        let mut out = vec![[0u32; 4]; texels as usize];
+        bytemuck::cast_slice_mut::<_, u8>(&mut out).copy_from_slice(&bytes[head..]);
+        Some(out)
+    }
+
+    /// Writes the table of `key` to `path` (under a temporary name, then
+    /// renamed) and removes the oldest files past [`KEPT`].
+    pub fn write(path: &Path, key: &[u32], lut: &[[u32; 4]]) {
+        let written = (|| -> std::io::Result<()> {
+            let dir = path.parent().unwrap_or(Path::new("."));
+            std::fs::create_dir_all(dir)?;
+            let mut bytes = Vec::with_capacity(12 + 4 * key.len() + 16 * lut.len());
+            bytes.extend_from_slice(MAGIC);
+            bytes.extend_from_slice(&(key.len() as u32).to_le_bytes());
+            for k in key {
+                bytes.extend_from_slice(&k.to_le_bytes());
+            }
+            bytes.extend_from_slice(bytemuck::cast_slice(lut));
+            let tmp = path.with_extension(format!("partial.{}", std::process::id()));
+            std::fs::write(&tmp, &bytes)?;
+            std::fs::rename(&tmp, path)?;
+            let mut files: Vec<(std::time::SystemTime, PathBuf)> = std::fs::read_dir(dir)?
+                .flatten()
+                .filter(|e| {
+                    let n = e.file_name();
+                    let n = n.to_string_lossy();
+                    n.starts_with("plane-lut-") && n.ends_with(".bin")
+                })
+                .filter_map(|e| Some((e.metadata().ok()?.modified().ok()?, e.path())))
+                .collect();
+            files.sort();
+            let extra = files.len().saturating_sub(KEPT);
+            for (_, old) in files.into_iter().take(extra) {
+                let _ = std::fs::remove_file(old);
+            }
+            Ok(())
+        })();
+        if let Err(e) = written {
+            log::warn!("{}: the look-up table is not kept: {e}", path.display());
+        }
     }
 }

@@ -113,6 +113,12 @@ impl ShadowPipeline {
         passes.plane_lut.bits(ctx, &mut passes.clock, light)
     }
 
+    /// Keeps look-up mode's tables in `dir` across runs (None: never; see
+    /// [`crate::gpu::plane_lut::table_cache`]).
+    pub fn set_table_cache(&mut self, dir: Option<std::path::PathBuf>) {
+        self.passes.plane_lut.set_cache_dir(dir);
+    }
+
     /// Limits the view samples per run (tests: forces the batched path that
     /// large runs take); `None` lifts the limit.
     pub fn set_batch_limit(&mut self, limit: Option<usize>) {

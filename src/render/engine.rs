@@ -157,6 +157,14 @@ impl Engine {
         })
     }
 
+    /// Keeps the look-up tables of lights with extent in `dir` across runs,
+    /// so that a later run with the same light samples reads its table
+    /// instead of building it (`None`, the default: never). The CLI uses
+    /// [`crate::gpu::plane_lut::table_cache::default_dir`].
+    pub fn set_table_cache(&mut self, dir: Option<std::path::PathBuf>) {
+        self.shadows.set_table_cache(dir);
+    }
+
     /// Limits the view samples per shadow run: larger sets are split into
     /// batches, as they are anyway when their buffers would pass the
     /// device's binding limits. For tests of that path; `None` lifts it.
