@@ -108,6 +108,14 @@ enum Config {
     MapHard {
         resolution: u32,
     },
+    /// Embree's shadow rays (all threads) with the same light samples.
+    #[cfg(feature = "embree")]
+    Embree {
+        samples: u32,
+    },
+    /// Embree's shadow rays for the point light of the hard-shadow rows.
+    #[cfg(feature = "embree")]
+    EmbreeHard,
 }
 
 impl Config {
@@ -127,6 +135,10 @@ impl Config {
             Config::PerSample { .. } => "per-sample-maps",
             Config::Oracle { .. } => "oracle",
             Config::OursHard => "ours-hard",
+            #[cfg(feature = "embree")]
+            Config::Embree { .. } => "embree",
+            #[cfg(feature = "embree")]
+            Config::EmbreeHard => "embree-hard",
             Config::MapHard { .. } => "shadow-map-hard",
         }
     }
@@ -134,7 +146,12 @@ impl Config {
     /// Hard-shadow configurations: a point light at the light's centre,
     /// measured against the oracle's hard shadows.
     fn hard(&self) -> bool {
-        matches!(self, Config::OursHard | Config::MapHard { .. })
+        match self {
+            Config::OursHard | Config::MapHard { .. } => true,
+            #[cfg(feature = "embree")]
+            Config::EmbreeHard => true,
+            _ => false,
+        }
     }
 
     fn params(&self) -> String {
@@ -158,6 +175,10 @@ impl Config {
             } => format!("samples={samples} map={resolution}"),
             Config::Oracle { samples } => format!("samples={samples}"),
             Config::OursHard => String::new(),
+            #[cfg(feature = "embree")]
+            Config::Embree { samples } => format!("samples={samples}"),
+            #[cfg(feature = "embree")]
+            Config::EmbreeHard => String::new(),
             Config::MapHard { resolution } => format!("map={resolution}"),
         }
     }
@@ -167,6 +188,8 @@ impl Config {
             Config::Ours { samples, .. }
             | Config::PerSample { samples, .. }
             | Config::Oracle { samples } => *samples,
+            #[cfg(feature = "embree")]
+            Config::Embree { samples } => *samples,
             _ => 0,
         }
     }
@@ -212,6 +235,8 @@ fn sweep(quick: bool) -> Vec<Config> {
         c.push(Config::Oracle { samples: 8 });
         c.push(Config::OursHard);
         c.push(Config::MapHard { resolution: 256 });
+        #[cfg(feature = "embree")]
+        c.extend([Config::Embree { samples: 8 }, Config::EmbreeHard]);
         return c;
     }
     for samples in [32, 128, 512, 1024] {
@@ -254,6 +279,13 @@ fn sweep(quick: bool) -> Vec<Config> {
         c.push(Config::Oracle { samples });
     }
     c.push(Config::OursHard);
+    #[cfg(feature = "embree")]
+    {
+        for samples in [32, 128, 512, 1024] {
+            c.push(Config::Embree { samples });
+        }
+        c.push(Config::EmbreeHard);
+    }
     for resolution in [2048, 8192] {
         c.push(Config::MapHard { resolution });
     }
@@ -493,9 +525,44 @@ pub fn run(engine: &mut Engine, options: &BenchOptions) -> Result<Vec<BenchRow>>
 /// table: run time of the first configuration over the second's, with
 /// both RMSEs. A ratio whose rows are missing (a custom sweep) is left out.
 pub fn ratios(rows: &[BenchRow]) -> String {
-    const PAIRS: [(&str, &str, &str, &str, &str); 6] = [
+    const PAIRS: [(&str, &str, &str, &str, &str); 11] = [
         (
-            "ours 128 (LUT) / one shadow map per sample, 128 × 1024²",
+            "ours 128 (look-up) / Embree 128 (all threads)",
+            "ours-lut",
+            "samples=128 lut=128",
+            "embree",
+            "samples=128",
+        ),
+        (
+            "ours 128 (exact) / Embree 128",
+            "ours-exact",
+            "samples=128",
+            "embree",
+            "samples=128",
+        ),
+        (
+            "ours 1024 (look-up) / Embree 1024",
+            "ours-lut",
+            "samples=1024 lut=128",
+            "embree",
+            "samples=1024",
+        ),
+        (
+            "ours hard / Embree hard",
+            "ours-hard",
+            "",
+            "embree-hard",
+            "",
+        ),
+        (
+            "ours 128 (look-up) / ours 128 (approximate look-up)",
+            "ours-lut",
+            "samples=128 lut=128",
+            "ours-approx",
+            "samples=128 lut=128",
+        ),
+        (
+            "ours 128 (look-up) / one shadow map per sample, 128 × 1024²",
             "ours-lut",
             "samples=128 lut=128",
             "per-sample-maps",
@@ -509,14 +576,14 @@ pub fn ratios(rows: &[BenchRow]) -> String {
             "samples=128 map=1024",
         ),
         (
-            "ours 128 (LUT) / CPU oracle, 128 samples",
+            "ours 128 (look-up) / CPU oracle, 128 samples",
             "ours-lut",
             "samples=128 lut=128",
             "oracle",
             "samples=128",
         ),
         (
-            "ours 1024 / ours 128 (LUT)",
+            "ours 1024 / ours 128 (look-up)",
             "ours-lut",
             "samples=1024 lut=128",
             "ours-lut",
@@ -640,6 +707,10 @@ fn run_config(
             baselines
                 .pcf(ctx, scene, eye, samples, light, &s)?
                 .visibility
+        }
+        #[cfg(feature = "embree")]
+        Config::Embree { .. } | Config::EmbreeHard => {
+            baselines.embree(scene, eye, samples, light)?.visibility
         }
     })
 }

@@ -27,10 +27,13 @@ fn plane_lut_matches_the_twin() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
     let desc = file::load("builtin:demo").unwrap();
     let eye = desc.camera.eye;
-    // 200 samples: two blocks, the second one partial.
+    // 200 samples: two blocks, the second one partial. The approximate
+    // mode's table, which the GPU builds (look-up mode's is built on the
+    // host: tests/lut_exact.rs and cpu::plane_lut's tests check it).
     let light = sphere_light(&desc, 200);
     let settings = ShadowSettings {
         lut_resolution: 24,
+        mode: SoftMode::Approx,
         ..Default::default()
     };
     let gpu = engine.plane_lut_bits(&light, eye, &settings).unwrap();

@@ -124,6 +124,10 @@ fn check_resolution(resolution: u32) -> Result<()> {
 /// The shadow-map baselines: their pipelines, made once and reused.
 pub struct Baselines {
     pass: ShadowMapPass,
+    /// The last scene committed to Embree, and what it was made from (its
+    /// triangle count and eye): built once per scene, not per frame.
+    #[cfg(feature = "embree")]
+    embree: Option<(usize, DVec3, embree::EmbreeScene)>,
 }
 
 /// Where a set of maps is rendered from: perspective from points
@@ -138,6 +142,44 @@ impl Baselines {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         Ok(Baselines {
             pass: ShadowMapPass::new(ctx)?,
+            #[cfg(feature = "embree")]
+            embree: None,
+        })
+    }
+
+    /// Embree's shadow rays ([`embree::light_shadows`], all threads), the
+    /// scene committed once and kept while the scene stays the same.
+    #[cfg(feature = "embree")]
+    pub fn embree(
+        &mut self,
+        scene: &Scene,
+        eye: DVec3,
+        samples: &[Option<ViewSample>],
+        light: &Light,
+    ) -> Result<BaselineResult> {
+        let threads = rayon::current_num_threads();
+        let count = scene.triangle_count();
+        if !self
+            .embree
+            .as_ref()
+            .is_some_and(|(n, e, _)| *n == count && *e == eye)
+        {
+            self.embree = None;
+            let s = embree::EmbreeScene::from_scene(scene, eye, threads)?;
+            self.embree = Some((count, eye, s));
+        }
+        let (_, _, s) = self.embree.as_ref().expect("made above");
+        let mode = embree::RayMode::Single;
+        let r = embree::light_shadows(s, scene, eye, samples, light, threads, mode)?;
+        Ok(BaselineResult {
+            visibility: r.visibility.clone(),
+            stats: serde_json::json!({
+                "rays": r.rays,
+                "ms": r.ms,
+                "rays_per_second": r.rays_per_second(),
+                "build_ms": s.build_ms,
+                "threads": threads,
+            }),
         })
     }
 

@@ -180,10 +180,12 @@ impl Engine {
         self.shadows.set_triangle_batch_limit(limit);
     }
 
-    /// The plane look-up texture the GPU builds for `light` (a light with
-    /// extent) with `settings`' resolution: per texel, then per 128-sample
-    /// block, the bits of the samples behind the texel's plane. For tests
-    /// against [`crate::cpu::plane_lut::build_lut`].
+    /// The plane look-up texture of `light` (a light with extent) with
+    /// `settings`' resolution and mode, as the device holds it: in
+    /// approximate mode, per texel, then per 128-sample block, the bits of
+    /// the samples behind the texel's plane (built on the GPU; for tests
+    /// against [`crate::cpu::plane_lut::build_lut`]); in look-up mode the
+    /// two masks of [`crate::cpu::plane_lut::build_bounds_lut`].
     pub fn plane_lut_bits(
         &mut self,
         light: &Light,
