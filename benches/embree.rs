@@ -19,7 +19,8 @@
 //! `target/`).
 //!
 //! `cargo bench --features embree --bench embree` (`-- NAME` runs the scenes
-//! whose name contains NAME).
+//! whose name contains NAME; `AFS_EMBREE_CONFIGS=hard,soft 128` only the
+//! configurations whose name contains one of those).
 
 use std::path::{Path, PathBuf};
 
@@ -129,7 +130,13 @@ fn main() {
                 SoftMode::Lut,
             ),
         ];
-        for (config, light, mode) in configs {
+        let wanted = std::env::var("AFS_EMBREE_CONFIGS").ok();
+        let wanted = |c: &str| {
+            wanted
+                .as_deref()
+                .is_none_or(|w| w.split(',').any(|p| c.contains(p.trim())))
+        };
+        for (config, light, mode) in configs.into_iter().filter(|c| wanted(&c.0)) {
             let (ours_ms, frame) = ours(&mut engine, &desc, &light, mode, repeats);
             let Stats::Gpu(stats) = &frame.stats else {
                 unreachable!("a GPU frame")

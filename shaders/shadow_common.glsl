@@ -52,14 +52,15 @@ struct LightPush {
     vec4 direction;    // xyz: directional light's travel direction
     uvec4 sizes;       // x: view samples, y: triangles, z: resolution, w: face count
     uvec4 more;        // x: pair capacity, y: tiles per row, z: tiles per face, w: occlusion units
-    vec4 dir_right;    // directional light's face basis: right; w (soft look-up mode): capacity of the unsure list (uint bits)
+    vec4 dir_right;    // directional light's face basis: right
     vec4 dir_up;       // and up (forward = direction)
-    uvec4 soft;        // x: 128-sample block, y: light samples (0: hard shadows), z: LUT resolution, w: SOFT_* flags
+    uvec4 soft;        // x: 128-sample block (exact mode) or the unsure list's capacity (look-up mode),
+                       // y: light samples (0: hard shadows), z: LUT resolution,
+                       // w: soft occlusion, look-up mode: the dispatch's first work unit
     vec4 soft_light;   // x: light bounding radius R (light samples within R of origin), y: influence polygon degree,
                        // z: global id of this run's triangle 0 (uint bits; triangle batches),
                        // w: look-up mode's rounding allowance LUT_ROUNDING, in light radii (soft_occlusion.comp)
 };
-#define SOFT_EXACT 1u
 
 // One light face: basis and fitted window (written by light_view_finalize).
 struct LightFace {

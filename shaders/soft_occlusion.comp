@@ -19,6 +19,7 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_ballot : require
 #define LIGHT_SAMPLES_BINDING 10
 #include "soft_common.glsl"
 layout(local_size_x = 64) in;
@@ -94,6 +95,11 @@ layout(set = 0, binding = 11) uniform usamplerBuffer lut_tb;         // LUT, all
 // SURE mode: the (slot, triangle, block) and unsure bits of each pair whose
 // bits the table leaves unsure, for soft_occlusion_unsure.comp.
 layout(set = 0, binding = 12) writeonly buffer UnsureList { uvec4 unsure_list[]; };
+#if SURE
+// Look-up mode runs the units in ranges, each flushing its unsure list
+// (soft_occlusion.rs): soft.w is the range's first unit.
+#define OCC_UNIT_BASE pc.soft.w
+#endif
 #include "soft_occlusion_units.glsl"
 
 #define LUT_ALL 0xffffffffu
@@ -196,13 +202,20 @@ uvec4 past_end(uint block) {
         uvec4 unsure = maybe & ~sure;                                        \
         acc##K |= sure;                                                      \
         hit = hit || sure != uvec4(0u);                                      \
-        if (unsure != uvec4(0u)) {                                           \
-            unsure_bits += bit_count(unsure);                                \
-            uint e = atomicAdd(counters[COUNTER_UNSURE_PAIRS], 1u);          \
-            if (e < floatBitsToUint(pc.dir_right.w)) {                       \
-                unsure_list[2u * e] = uvec4(s, ids.x, uint(K), 0u);          \
-                unsure_list[2u * e + 1u] = unsure;                           \
-            }                                                                \
+        unsure_bits += bit_count(unsure);                                    \
+        /* One atomic per subgroup: each lane's entry after its     */       \
+        /* neighbours' (lavapipe serializes per-lane atomics).     */        \
+        bool want = unsure != uvec4(0u);                                     \
+        uvec4 ballot = subgroupBallot(want);                                 \
+        uint count = subgroupBallotBitCount(ballot);                         \
+        uint first = 0u;                                                     \
+        if (subgroupElect() && count != 0u) {                                \
+            first = atomicAdd(counters[COUNTER_UNSURE_PAIRS], count);        \
+        }                                                                    \
+        uint e = subgroupBroadcastFirst(first) + subgroupBallotExclusiveBitCount(ballot); \
+        if (want && e < pc.soft.x) {                                         \
+            unsure_list[2u * e] = uvec4(s, ids.x, uint(K), 0u);              \
+            unsure_list[2u * e + 1u] = unsure;                               \
         }                                                                    \
     }
 

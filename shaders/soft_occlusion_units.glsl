@@ -7,6 +7,11 @@
 #ifndef AFS_OCCLUSION_UNITS_GLSL
 #define AFS_OCCLUSION_UNITS_GLSL
 
+// The first unit of this dispatch (a dispatch may run a range of units).
+#ifndef OCC_UNIT_BASE
+#define OCC_UNIT_BASE 0u
+#endif
+
 struct OcclusionUnit {
     uint pair_begin;   // this unit's pairs: tile_pairs[pair_begin..pair_end)
     uint pair_end;
@@ -19,7 +24,7 @@ struct OcclusionUnit {
 
 OcclusionUnit occlusion_unit() {
     OcclusionUnit u;
-    uint unit = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint unit = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x + OCC_UNIT_BASE;
     uint tiles_per_face = pc.more.z;
     u.has_sample = false;
     u.first_of_texel = false;

@@ -198,3 +198,63 @@ fn the_table_is_kept_across_runs() {
     let files = std::fs::read_dir(dir.path()).unwrap().count();
     assert_eq!(files, KEPT);
 }
+
+/// The unsure list in small ranges (and ranges that overflow and run again)
+/// gives the same masks as one range.
+#[test]
+fn unsure_list_ranges_equal_one_range() {
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let desc = load_scene("builtin:torus_knot:20000", 128).unwrap();
+    let eye = desc.camera.eye;
+    let oracle = Oracle::new(&desc.scene.triangles(), eye);
+    let view = engine_view_samples(&oracle, &desc);
+    let light = bench_light(&desc, 200).unwrap();
+    let settings = ShadowSettings::default();
+    let one = engine
+        .soft_shadows(&desc.scene, eye, &view.samples, &light, &settings)
+        .unwrap();
+    let exact = engine
+        .soft_shadows(
+            &desc.scene,
+            eye,
+            &view.samples,
+            &light,
+            &ShadowSettings {
+                mode: SoftMode::Exact,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+    assert_eq!(one.visible, exact.visible);
+    let listed = one.stats.soft.as_ref().unwrap().unsure_bits;
+    // More than the smallest range holds (one unit's bound, 31,775).
+    assert!(
+        listed > 100_000,
+        "the case must list many unsure bits: {listed}"
+    );
+    for limit in [1u64, 60_000] {
+        engine.set_unsure_list_limit(Some(limit));
+        let ranged = engine
+            .soft_shadows(&desc.scene, eye, &view.samples, &light, &settings)
+            .unwrap();
+        let (a, b): (u32, u32) = (
+            one.visible.iter().map(|w| w.count_ones()).sum(),
+            ranged.visible.iter().map(|w| w.count_ones()).sum(),
+        );
+        let differ = one
+            .visible
+            .iter()
+            .zip(&ranged.visible)
+            .filter(|(x, y)| x != y)
+            .count();
+        assert!(
+            differ == 0,
+            "list limit {limit}: {differ} words differ, visible bits {a} in one range, {b} in ranges"
+        );
+        assert_eq!(
+            one.stats.view_sample_triangle_tests, ranged.stats.view_sample_triangle_tests,
+            "ranges run again from the counters before them"
+        );
+    }
+    engine.context().check_validation().unwrap();
+}

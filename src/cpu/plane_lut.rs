@@ -98,10 +98,10 @@ pub fn build_lut(normalized: &[Vec3], res: u32) -> Vec<BlockBits> {
     lut
 }
 
-/// An upper bound of the distance between a unit normal and the normal at
-/// the centre of its table cell (the octahedral cell of a `res`³ table it
-/// falls in, [`lut_index`]), over every cell. The look-up mode's bound:
-/// for a plane (u, d) looked up at its cell's centre plane (n_t, d_t),
+/// Per octahedral cell (index j · res + i) of a `res`³ table, an upper
+/// bound of the distance between any unit normal in the cell (as
+/// [`lut_index`] assigns it) and the cell's centre normal: for a plane
+/// (u, d) looked up at its cell's centre plane (n_t, d_t),
 /// |n_t·y − u·y| ≤ this for every light sample (|y| ≤ 1).
 ///
 /// The decode maps each cell onto its spherical patch one to one, so the
@@ -111,12 +111,13 @@ pub fn build_lut(normalized: &[Vec3], res: u32) -> Vec<BlockBits> {
 /// octahedral coordinates) covers what lies between two samples, plus
 /// 1e-6 for the f32 rounding of the centre normal and of the encode. The
 /// octahedral map's mirror symmetries in x and y leave one quadrant of the
-/// cells to visit. Cached per resolution.
-pub fn normal_radius(res: u32) -> f32 {
-    static CACHE: std::sync::Mutex<Vec<(u32, f32)>> = std::sync::Mutex::new(Vec::new());
+/// cells to compute. Cached per resolution.
+pub fn cell_radii(res: u32) -> std::sync::Arc<Vec<f32>> {
+    use std::sync::{Arc, Mutex};
+    static CACHE: Mutex<Vec<(u32, Arc<Vec<f32>>)>> = Mutex::new(Vec::new());
     let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some(&(_, r)) = cache.iter().find(|(r, _)| *r == res) {
-        return r;
+    if let Some((_, r)) = cache.iter().find(|(r, _)| *r == res) {
+        return Arc::clone(r);
     }
     const STEPS: usize = 64;
     let step = 2.0 / res as f64;
@@ -129,37 +130,56 @@ pub fn normal_radius(res: u32) -> f32 {
         }
         n.normalize()
     };
-    let first = (res / 2).saturating_sub(1);
-    let mut worst = 0.0f64;
-    for j in first..res {
-        for i in first..res {
-            let (n, _) = lut_texel_plane(i, j, 0, res);
-            let centre = n.as_dvec3();
-            let (x0, y0) = (-1.0 + i as f64 * step, -1.0 + j as f64 * step);
-            for k in 0..=STEPS {
-                let t = k as f64 / STEPS as f64 * step;
-                for (x, y) in [
-                    (x0 + t, y0),
-                    (x0 + t, y0 + step),
-                    (x0, y0 + t),
-                    (x0 + step, y0 + t),
-                ] {
-                    worst = worst.max(decode(x, y).distance(centre));
-                }
+    let slack = 4.5 * step / STEPS as f64 / 2.0 + 1e-6;
+    let radius = |i: u32, j: u32| {
+        let (n, _) = lut_texel_plane(i, j, 0, res);
+        let centre = n.as_dvec3();
+        let (x0, y0) = (-1.0 + i as f64 * step, -1.0 + j as f64 * step);
+        let mut worst = 0.0f64;
+        for k in 0..=STEPS {
+            let t = k as f64 / STEPS as f64 * step;
+            for (x, y) in [
+                (x0 + t, y0),
+                (x0 + t, y0 + step),
+                (x0, y0 + t),
+                (x0 + step, y0 + t),
+            ] {
+                worst = worst.max(decode(x, y).distance(centre));
             }
         }
+        (worst + slack) as f32
+    };
+    // Cell i mirrors to res − 1 − i; the quadrant i, j ≥ res / 2 − 1
+    // (overlapping the axes for odd res) holds one of each pair.
+    let first = (res / 2).saturating_sub(1);
+    let mut quadrant = vec![0.0f32; (res * res) as usize];
+    for j in first..res {
+        for i in first..res {
+            quadrant[(j * res + i) as usize] = radius(i, j);
+        }
     }
-    let r = (worst + 4.5 * step / STEPS as f64 / 2.0 + 1e-6) as f32;
-    cache.push((res, r));
-    r
+    let mirror = |v: u32| if v < first { res - 1 - v } else { v };
+    let out: Vec<f32> = (0..res * res)
+        .map(|c| {
+            let (i, j) = (c % res, c / res);
+            let r = quadrant[(mirror(j) * res + mirror(i)) as usize];
+            // Mirrored cells of odd resolutions differ by rounding only:
+            // never below the computed one's.
+            if mirror(i) == i && mirror(j) == j {
+                r
+            } else {
+                r + 1e-6
+            }
+        })
+        .collect();
+    let out = Arc::new(out);
+    cache.push((res, Arc::clone(&out)));
+    out
 }
 
-/// The look-up mode's quantization bound for a `res`³ table, in light
-/// radii: a plane's distance from its cell's centre plane's, over every
-/// light sample: the normal radius ([`normal_radius`]), half a cell of d
-/// (1 / `res`) and 2e-6 for the f32 comparisons of the table's build.
-pub fn lut_quantization(res: u32) -> f32 {
-    normal_radius(res) + 1.0 / res as f32 + 2e-6
+/// The largest of [`cell_radii`].
+pub fn normal_radius(res: u32) -> f32 {
+    cell_radii(res).iter().copied().fold(0.0, f32::max)
 }
 
 /// The look-up mode's allowance for the rounding of the exact per-sample
@@ -168,10 +188,11 @@ pub fn lut_quantization(res: u32) -> f32 {
 /// exactly instead (`soft_occlusion.comp`, `rounding_too_large`).
 pub const LUT_ROUNDING: f32 = 1e-3;
 
-/// The margin of the look-up mode's table: the quantization of a `res`³
-/// table ([`lut_quantization`]) plus [`LUT_ROUNDING`].
-pub fn bounds_margin(res: u32) -> f32 {
-    lut_quantization(res) + LUT_ROUNDING
+/// The margin of the look-up mode's table at normal cell `cell`: the
+/// cell's radius ([`cell_radii`]), half a cell of d, 2e-6 for the f32
+/// comparisons of the build, plus [`LUT_ROUNDING`].
+pub fn bounds_margin(res: u32, cell: usize) -> f32 {
+    cell_radii(res)[cell] + 1.0 / res as f32 + 2e-6 + LUT_ROUNDING
 }
 
 /// The d of the centre of cell `k` of `res`, in f32 as
@@ -185,7 +206,7 @@ fn cell_centre(k: u32, res: u32) -> f32 {
 /// 128-sample block, two masks: `[every, some]` at `2 · (texel · blocks +
 /// block)`: the normalized samples y with n_t·y < d_t − w ("every") and
 /// with n_t·y < d_t + w ("some"), (n_t, d_t) the texel's centre plane and
-/// w = [`bounds_margin`] (all in f32). For a plane (u, d) in the texel's
+/// w = [`bounds_margin`] of its normal cell (all in f32). For a plane (u, d) in the texel's
 /// cell, "every" holds samples certainly behind it and samples outside
 /// "some" are certainly not (`soft_occlusion.comp`, SURE_BLOCK).
 ///
@@ -198,7 +219,6 @@ fn cell_centre(k: u32, res: u32) -> f32 {
 pub fn build_bounds_lut(normalized: &[Vec3], res: u32) -> Vec<BlockBits> {
     use rayon::prelude::*;
     let nb = blocks(normalized.len());
-    let w = bounds_margin(res);
     let r = res as usize;
     let step = 2.0 / res as f32;
     // The first cell k in 0..=res with t < centre(k) + shift (res: none):
@@ -227,6 +247,7 @@ pub fn build_bounds_lut(normalized: &[Vec3], res: u32) -> Vec<BlockBits> {
         let mut buckets = vec![[0u32; 4]; r * (r + 1) * nb * 2];
         for i in 0..res {
             let (n, _) = lut_texel_plane(i, j, 0, res);
+            let w = bounds_margin(res, (j * res + i) as usize);
             for (s, y) in normalized.iter().enumerate() {
                 let t = n.dot(*y);
                 let (b, word, bit) = (s / 128, (s % 128) / 32, 1u32 << (s % 32));
@@ -270,13 +291,13 @@ mod tests {
             .collect();
         let res = 12;
         let nb = 2;
-        let w = bounds_margin(res);
         let lut = build_bounds_lut(&ys, res);
         assert_eq!(lut.len(), 12 * 12 * 12 * nb * 2);
         // Every bit is the f32 comparison that defines it.
         for texel in 0..(res * res * res) as usize {
             let t = texel as u32;
             let (n, d) = lut_texel_plane(t % res, (t / res) % res, t / (res * res), res);
+            let w = bounds_margin(res, (t % (res * res)) as usize);
             for (s, y) in ys.iter().enumerate() {
                 let at =
                     |m: usize| lut[2 * (texel * nb + s / 128) + m][(s % 128) / 32] >> (s % 32) & 1;

@@ -4,7 +4,7 @@
 //! ([`Recording`]).
 
 use crate::cpu::light_view::LightView;
-use crate::cpu::plane_lut::lut_quantization;
+use crate::cpu::plane_lut::LUT_ROUNDING;
 use crate::gpu::pass_clock::PassClock;
 use crate::gpu::shared::{LightPush, LIGHT_KIND_DIRECTIONAL, LIGHT_KIND_POINT};
 use crate::gpu::soft_light::{SoftLight, SoftMode};
@@ -87,12 +87,7 @@ impl LightFrame {
             dir_right: [r.x, r.y, r.z, 0.0],
             dir_up: [u.x, u.y, u.z, 0.0],
             soft: match soft {
-                Some(sl) => [
-                    0,
-                    sl.samples.len() as u32,
-                    sl.lut_resolution,
-                    u32::from(sl.mode == SoftMode::Exact),
-                ],
+                Some(sl) => [0, sl.samples.len() as u32, sl.lut_resolution, 0],
                 None => [0; 4],
             },
             soft_light: match soft {
@@ -101,7 +96,7 @@ impl LightFrame {
                     sl.polygon_degree as f32,
                     base,
                     match sl.mode {
-                        SoftMode::Lut => lut_quantization(sl.lut_resolution),
+                        SoftMode::Lut => LUT_ROUNDING,
                         _ => 0.0,
                     },
                 ],

@@ -194,7 +194,7 @@ pub mod table_cache {
 
     /// Files kept in the directory.
     pub const KEPT: usize = 8;
-    const MAGIC: &[u8; 8] = b"AFSLUT01";
+    const MAGIC: &[u8; 8] = b"AFSLUT02";
 
     /// The directory tables go to by default: `AFS_TABLE_CACHE` (`0` or
     /// `off`: none), else `$XDG_CACHE_HOME/alias-free-shadows`, else

@@ -119,6 +119,13 @@ impl ShadowPipeline {
         self.passes.plane_lut.set_cache_dir(dir);
     }
 
+    /// Limits the entries of look-up mode's unsure list per range of work
+    /// units (tests: forces many ranges, and ranges that overflow and run
+    /// again); `None` lifts it.
+    pub fn set_unsure_list_limit(&mut self, limit: Option<u64>) {
+        self.passes.soft_occlusion.list_limit = limit;
+    }
+
     /// Limits the view samples per run (tests: forces the batched path that
     /// large runs take); `None` lifts the limit.
     pub fn set_batch_limit(&mut self, limit: Option<usize>) {

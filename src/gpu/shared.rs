@@ -183,7 +183,8 @@ pub struct LightPush {
     pub dir_right: [f32; 4],
     pub dir_up: [f32; 4],
     /// Soft shadows: 128-sample block, light samples (0: hard shadows),
-    /// LUT resolution, `SOFT_*` flags.
+    /// LUT resolution; w: look-up mode's occlusion, the dispatch's first
+    /// work unit.
     pub soft: [u32; 4],
     /// Soft shadows: light bounding radius, influence polygon degree; z
     /// (all runs): the global id of this run's triangle 0 as `u32` bits

@@ -24,6 +24,12 @@ use crate::vulkan::{
 };
 use crate::Result;
 
+/// The most entries of the unsure list (32 B each, one storage binding):
+/// look-up mode runs the work units in ranges whose entries fit it.
+fn unsure_list_entries(ctx: &GpuContext) -> u64 {
+    (ctx.info().limits.max_storage_buffer_range as u64 / 32).min(1 << 22)
+}
+
 /// The soft occlusion pipelines and the masks they write.
 pub struct SoftOcclusionPass {
     /// Look-up mode (exact masks), one pipeline per number of 128-sample
@@ -32,9 +38,6 @@ pub struct SoftOcclusionPass {
     /// Approximate (nearest-texel) look-up mode, per block count.
     approx: Vec<ComputePipeline>,
     exact: ComputePipeline,
-    /// Exact mode with the look-up mode's work units, per block count: the
-    /// fallback when the unsure list would pass the binding limit.
-    exact_sure: Vec<ComputePipeline>,
     /// Look-up mode: the unsure list's exact tests.
     unsure: ComputePipeline,
     /// Look-up mode: (slot, triangle, block) and unsure bits per entry
@@ -43,6 +46,11 @@ pub struct SoftOcclusionPass {
     /// The counters before the occlusion, to run it again when the unsure
     /// list overflows.
     counters_before: GrowBuffer,
+    /// Work units per range in the last look-up run (0: none yet).
+    units_per_range: u32,
+    /// At most this many unsure-list entries per range (tests: forces
+    /// many ranges and the runs again of ranges that overflow).
+    pub list_limit: Option<u64>,
     /// Per list slot: blocked light samples, `mask_words` words.
     pub blocked: GrowBuffer,
     /// The camera-relative light samples (uniform buffer).
@@ -106,15 +114,6 @@ impl SoftOcclusionPass {
                 shaders::SOFT_OCCLUSION_EXACT,
                 SOFT_PAIR_CHUNK,
             )?,
-            exact_sure: (1..=8)
-                .map(|b| {
-                    make(
-                        "soft_occlusion_exact",
-                        shaders::SOFT_OCCLUSION_EXACT,
-                        sure_pair_chunk(b),
-                    )
-                })
-                .collect::<Result<_>>()?,
             unsure: ctx.create_compute_pipeline(&ComputePipelineDesc {
                 name: "soft_occlusion_unsure",
                 spirv: shaders::SOFT_OCCLUSION_UNSURE,
@@ -124,6 +123,8 @@ impl SoftOcclusionPass {
             })?,
             unsure_list: GrowBuffer::storage("unsure_list"),
             counters_before: GrowBuffer::storage("counters_before_occlusion"),
+            units_per_range: 0,
+            list_limit: None,
             blocked: GrowBuffer::storage("blocked_masks"),
             light_samples: GrowBuffer::storage_uniform("light_samples"),
             no_table: GrowBuffer::storage("plane_lut_unused"),
@@ -140,23 +141,13 @@ impl SoftOcclusionPass {
         ctx.upload_staged(ubo, 0, &v)?;
         self.no_table.get(ctx, 16)?;
         self.counters_before.get(ctx, 4 * counter::COUNT as u64)?;
-        // The unsure list: kept from earlier frames, else room for a few
-        // entries per listed sample and block (it grows when a frame needs
-        // more, up to one binding).
-        let entries = (2 * frame.n as u64 * sl.blocks() as u64).max(1 << 16);
-        let max = self.max_entries(ctx);
-        if self.unsure_list.capacity() < 32 * entries.min(max) {
-            self.unsure_list.get(ctx, 32 * entries.min(max))?;
+        // The unsure list (the units run in ranges whose entries fit it).
+        if sl.mode == SoftMode::Lut {
+            self.unsure_list.get(ctx, 32 * unsure_list_entries(ctx))?;
         } else {
-            let keep = self.unsure_list.capacity();
-            self.unsure_list.get(ctx, keep)?;
+            self.unsure_list.get(ctx, 16)?;
         }
         Ok(())
-    }
-
-    /// The most entries the unsure list can hold (one storage binding).
-    fn max_entries(&self, ctx: &GpuContext) -> u64 {
-        ctx.info().limits.max_storage_buffer_range as u64 / 32
     }
 
     /// Records the occlusion passes (once the work units are known; `table`:
@@ -176,11 +167,17 @@ impl SoftOcclusionPass {
         let blocks = sl.blocks();
         match sl.mode {
             SoftMode::Exact => {
-                self.occlusion(r, &self.exact, blocks as u32, None, passes, counters)
+                r.cmd.fill_buffer(self.blocked.slice(), 0)?;
+                for block in 0..blocks as u32 {
+                    self.occlusion_block(r, &self.exact, block, None, passes, counters)?;
+                }
+                Ok(())
             }
             SoftMode::Approx => {
+                r.cmd.fill_buffer(self.blocked.slice(), 0)?;
                 let pipeline = &self.approx[blocks - 1];
-                self.occlusion(r, pipeline, 1, table, passes, counters)
+                let all = (0, r.frame.units());
+                self.occlusion(r, pipeline, all, table, passes, counters)
             }
             SoftMode::Lut => self.record_sure(r, sl, table, passes, counters),
         }
@@ -195,34 +192,69 @@ impl SoftOcclusionPass {
         counters: &GrowBuffer,
     ) -> Result<()> {
         let blocks = sl.blocks();
-        r.cmd.barrier(Barrier::ComputeToTransfer);
-        r.cmd
-            .copy_buffer(counters.slice(), self.counters_before.buffer(), 0)?;
         let sure = &self.sure[blocks - 1];
-        self.occlusion(r, sure, 1, table, passes, counters)?;
-        r.submit()?;
-        let c: Vec<u32> = r
-            .ctx
-            .read_buffer_staged(counters.buffer(), 0, counter::COUNT)?;
-        let listed = c[counter::UNSURE_PAIRS] as u64;
-        if listed > self.unsure_list.len() / 32 {
-            // Again, from the counters before, with a list that holds them
-            // all, or exactly when one binding cannot.
-            let before = self.counters_before.slice();
-            r.cmd.copy_buffer(before, counters.buffer(), 0)?;
+        let units = r.frame.units();
+        let listed_at = 4 * counter::UNSURE_PAIRS as u64;
+        r.cmd.fill_buffer(self.blocked.slice(), 0)?;
+        // The units in ranges, each followed by the exact tests of its
+        // unsure list. A unit lists at most one entry per lane, pair and
+        // block, so the first range is as long as that bound allows; later
+        // ones follow the entries per unit seen (and the last frame's
+        // length). A range whose list overflowed runs again, shorter, from
+        // the counters before it: its sure bits ORed twice are the same.
+        let per_unit = 64 * sure_pair_chunk(blocks as u32).1 as u64 * blocks as u64;
+        let capacity = self.capacity();
+        debug_assert!(capacity >= per_unit);
+        let safe = (capacity / per_unit).max(1) as u32;
+        let mut len = self.units_per_range.max(safe);
+        let mut start = 0u32;
+        while start < units {
+            len = len.min(units - start);
+            r.cmd
+                .fill_buffer(counters.buffer().slice(listed_at, 4)?, 0)?;
+            r.cmd.barrier(Barrier::ComputeToTransfer);
+            r.cmd
+                .copy_buffer(counters.slice(), self.counters_before.buffer(), 0)?;
             r.cmd.barrier(Barrier::TransferToCompute);
-            if listed > self.max_entries(r.ctx) {
-                let exact = &self.exact_sure[blocks - 1];
-                return self.occlusion(r, exact, blocks as u32, None, passes, counters);
+            self.occlusion(r, sure, (start, len), table, passes, counters)?;
+            r.submit()?;
+            let c: Vec<u32> = r
+                .ctx
+                .read_buffer_staged(counters.buffer(), 0, counter::COUNT)?;
+            let listed = c[counter::UNSURE_PAIRS] as u64;
+            if listed > capacity {
+                r.cmd
+                    .copy_buffer(self.counters_before.slice(), counters.buffer(), 0)?;
+                r.cmd.barrier(Barrier::TransferToCompute);
+                len = ((len as u64 * capacity / listed) * 7 / 10)
+                    .clamp(1, (len as u64).saturating_sub(1).max(1)) as u32;
+                continue;
             }
-            self.unsure_list.get(
-                r.ctx,
-                32 * (listed + listed / 4).min(self.max_entries(r.ctx)),
-            )?;
-            self.occlusion(r, sure, 1, table, passes, counters)?;
+            self.test_unsure(r, listed, passes.0)?;
+            start += len;
+            // The next range: as many units as this one's density fits
+            // with room to spare, at most four times as many.
+            let fit = capacity as f64 * len as f64 / (1.5 * listed as f64).max(1.0);
+            len = fit.clamp(safe as f64, (4.0 * len as f64).max(safe as f64)) as u32;
         }
+        self.units_per_range = len;
+        Ok(())
+    }
+
+    /// Entries the unsure list holds per range: its size, or the limit,
+    /// but never below one unit's bound (64 lanes × a unit's pairs × its
+    /// blocks, `sure_pair_chunk`: at most 64 · 65535 / 132 for any block
+    /// count), so that a range of one unit always fits.
+    fn capacity(&self) -> u64 {
+        let one_unit = 64 * 65535 / 132;
+        let limit = self.list_limit.unwrap_or(u64::MAX).max(one_unit);
+        (self.unsure_list.len() / 32).min(limit)
+    }
+
+    /// Records the exact tests of the first `listed` entries of the unsure list.
+    fn test_unsure(&self, r: &mut Recording, listed: u64, lists: &TexelListPass) -> Result<()> {
         let (list, triangles) = (&self.unsure_list, r.inputs.triangles);
-        let samples = &passes.0.list_samples;
+        let samples = &lists.list_samples;
         let mut push = r.frame.push;
         push.more[3] = listed as u32;
         r.pass("occlusion_unsure", |rec, _| {
@@ -240,48 +272,75 @@ impl SoftOcclusionPass {
         })
     }
 
-    /// Clears the masks and records `pipeline` in `passes` passes (one per
-    /// block in exact mode), with `table` (or none).
+    /// Records `pipeline` over the work units `start..start + len` (all
+    /// blocks: the look-up modes), with `table` (or none).
     fn occlusion(
         &self,
         r: &mut Recording,
         pipeline: &ComputePipeline,
-        passes: u32,
+        (start, len): (u32, u32),
+        table: Option<&Buffer>,
+        passes: (&TexelListPass, &CasterPass, &TileBinPass),
+        counters: &GrowBuffer,
+    ) -> Result<()> {
+        // soft.x: exact mode's block; the look-up modes': the list's capacity
+        // (an integer field: as float bits it would be a denormal, which a
+        // driver may flush to zero).
+        let capacity = self.capacity() as u32;
+        self.occlusion_pass(r, pipeline, (capacity, start, len), table, passes, counters)
+    }
+
+    /// Records exact mode's pass of 128-sample block `block` over every unit.
+    fn occlusion_block(
+        &self,
+        r: &mut Recording,
+        pipeline: &ComputePipeline,
+        block: u32,
+        table: Option<&Buffer>,
+        passes: (&TexelListPass, &CasterPass, &TileBinPass),
+        counters: &GrowBuffer,
+    ) -> Result<()> {
+        let units = r.frame.units();
+        self.occlusion_pass(r, pipeline, (block, 0, units), table, passes, counters)
+    }
+
+    /// One occlusion dispatch: block `block` (exact mode), units
+    /// `start..start + len`.
+    fn occlusion_pass(
+        &self,
+        r: &mut Recording,
+        pipeline: &ComputePipeline,
+        (block, start, len): (u32, u32, u32),
         table: Option<&Buffer>,
         (lists, casters, bins): (&TexelListPass, &CasterPass, &TileBinPass),
         counters: &GrowBuffer,
     ) -> Result<()> {
-        r.cmd.fill_buffer(self.blocked.slice(), 0)?;
         r.cmd.barrier(Barrier::TransferToCompute);
         let table = table.map_or(self.no_table.slice(), |t| t.into());
-        let (triangles, units) = (r.inputs.triangles, r.frame.units());
-        let capacity = (self.unsure_list.len() / 32) as u32;
-        for block in 0..passes {
-            r.pass("occlusion", |rec, pc| {
-                let mut push: LightPush = bytemuck::pod_read_unaligned(pc);
-                push.soft[0] = block;
-                push.dir_right[3] = f32::from_bits(capacity);
-                let bindings = [
-                    Binding::uniform_texel(&casters.pairs, RGBA32UI),
-                    Binding::uniform_texel(triangles, RGBA32UI),
-                    storage(&bins.tile_offsets),
-                    Binding::uniform_texel(&bins.tile_pairs, vk::Format::R32_UINT),
-                    storage(&lists.counts),
-                    storage(&lists.offsets),
-                    Binding::uniform_texel(&lists.list_samples, RGBA32UI),
-                    storage(&self.blocked),
-                    storage(counters),
-                    storage(&bins.unit_offsets),
-                    Binding::uniform(&self.light_samples),
-                    Binding::uniform_texel(table, RGBA32UI),
-                    storage(&self.unsure_list),
-                ];
-                let groups = groups_2d(units.max(1));
-                rec.dispatch(pipeline, &bindings, bytemuck::bytes_of(&push), groups)?;
-                rec.barrier(Barrier::ComputeToCompute);
-                Ok(())
-            })?;
-        }
-        Ok(())
+        let triangles = r.inputs.triangles;
+        r.pass("occlusion", |rec, pc| {
+            let mut push: LightPush = bytemuck::pod_read_unaligned(pc);
+            push.soft[0] = block;
+            push.soft[3] = start;
+            let bindings = [
+                Binding::uniform_texel(&casters.pairs, RGBA32UI),
+                Binding::uniform_texel(triangles, RGBA32UI),
+                storage(&bins.tile_offsets),
+                Binding::uniform_texel(&bins.tile_pairs, vk::Format::R32_UINT),
+                storage(&lists.counts),
+                storage(&lists.offsets),
+                Binding::uniform_texel(&lists.list_samples, RGBA32UI),
+                storage(&self.blocked),
+                storage(counters),
+                storage(&bins.unit_offsets),
+                Binding::uniform(&self.light_samples),
+                Binding::uniform_texel(table, RGBA32UI),
+                storage(&self.unsure_list),
+            ];
+            let groups = groups_2d(len.max(1));
+            rec.dispatch(pipeline, &bindings, bytemuck::bytes_of(&push), groups)?;
+            rec.barrier(Barrier::ComputeToCompute);
+            Ok(())
+        })
     }
 }

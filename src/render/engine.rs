@@ -165,6 +165,13 @@ impl Engine {
         self.shadows.set_table_cache(dir);
     }
 
+    /// Limits the entries of look-up mode's unsure list per range of work
+    /// units: more ranges (and runs again of ranges that overflow), the same
+    /// masks. For tests of that path; `None` lifts it.
+    pub fn set_unsure_list_limit(&mut self, limit: Option<u64>) {
+        self.shadows.set_unsure_list_limit(limit);
+    }
+
     /// Limits the view samples per shadow run: larger sets are split into
     /// batches, as they are anyway when their buffers would pass the
     /// device's binding limits. For tests of that path; `None` lifts it.
