@@ -46,8 +46,9 @@ pub struct SoftOcclusionPass {
     /// The counters before the occlusion, to run it again when the unsure
     /// list overflows.
     counters_before: GrowBuffer,
-    /// Work units per range in the last look-up run (0: none yet).
-    units_per_range: u32,
+    /// The last look-up run's work units and its ranges' (start, length,
+    /// entries): the next run with as many units plans its ranges by them.
+    last_ranges: (u32, Vec<(u32, u32, u64)>),
     /// At most this many unsure-list entries per range (tests: forces
     /// many ranges and the runs again of ranges that overflow).
     pub list_limit: Option<u64>,
@@ -123,7 +124,7 @@ impl SoftOcclusionPass {
             })?,
             unsure_list: GrowBuffer::storage("unsure_list"),
             counters_before: GrowBuffer::storage("counters_before_occlusion"),
-            units_per_range: 0,
+            last_ranges: (0, Vec::new()),
             list_limit: None,
             blocked: GrowBuffer::storage("blocked_masks"),
             light_samples: GrowBuffer::storage_uniform("light_samples"),
@@ -199,16 +200,26 @@ impl SoftOcclusionPass {
         // The units in ranges, each followed by the exact tests of its
         // unsure list. A unit lists at most one entry per lane, pair and
         // block, so the first range is as long as that bound allows; later
-        // ones follow the entries per unit seen (and the last frame's
-        // length). A range whose list overflowed runs again, shorter, from
+        // ones follow the entries per unit seen, or the last run's ranges
+        // when it had as many units (a frame like the last: no range runs
+        // twice). A range whose list overflowed runs again, shorter, from
         // the counters before it: its sure bits ORed twice are the same.
         let per_unit = 64 * sure_pair_chunk(blocks as u32).1 as u64 * blocks as u64;
         let capacity = self.capacity();
         debug_assert!(capacity >= per_unit);
         let safe = (capacity / per_unit).max(1) as u32;
-        let mut len = self.units_per_range.max(safe);
+        let plan = std::mem::take(&mut self.last_ranges);
+        let plan = (plan.0 == units).then_some(plan.1).unwrap_or_default();
+        let mut done = Vec::new();
+        let mut len = safe;
         let mut start = 0u32;
+        let mut retry = false;
         while start < units {
+            if !retry {
+                if let Some(l) = planned_len(&plan, start, capacity) {
+                    len = len.max(l);
+                }
+            }
             len = len.min(units - start);
             r.cmd
                 .fill_buffer(counters.buffer().slice(listed_at, 4)?, 0)?;
@@ -228,16 +239,19 @@ impl SoftOcclusionPass {
                 r.cmd.barrier(Barrier::TransferToCompute);
                 len = ((len as u64 * capacity / listed) * 7 / 10)
                     .clamp(1, (len as u64).saturating_sub(1).max(1)) as u32;
+                retry = true;
                 continue;
             }
+            retry = false;
             self.test_unsure(r, listed, passes.0)?;
+            done.push((start, len, listed));
             start += len;
             // The next range: as many units as this one's density fits
             // with room to spare, at most four times as many.
             let fit = capacity as f64 * len as f64 / (1.5 * listed as f64).max(1.0);
             len = fit.clamp(safe as f64, (4.0 * len as f64).max(safe as f64)) as u32;
         }
-        self.units_per_range = len;
+        self.last_ranges = (units, done);
         Ok(())
     }
 
@@ -343,4 +357,25 @@ impl SoftOcclusionPass {
             Ok(())
         })
     }
+}
+
+/// The units from `start` whose entries, by the last run's ranges `plan`
+/// (spread evenly over each range), fill three quarters of `capacity`;
+/// `None` without a plan.
+fn planned_len(plan: &[(u32, u32, u64)], start: u32, capacity: u64) -> Option<u32> {
+    let budget = 0.75 * capacity as f64;
+    let (mut used, mut end) = (0.0f64, start);
+    for &(s, l, entries) in plan.iter().filter(|r| r.0 + r.1 > start) {
+        let from = s.max(start);
+        let density = entries as f64 / l.max(1) as f64;
+        let room = ((budget - used) / density.max(1e-12)).floor();
+        let take = (s + l - from) as f64;
+        if room < take {
+            end = from + room as u32;
+            return Some((end - start).max(1));
+        }
+        used += take * density;
+        end = s + l;
+    }
+    (!plan.is_empty()).then_some((end - start).max(1))
 }
