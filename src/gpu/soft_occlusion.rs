@@ -209,7 +209,7 @@ impl SoftOcclusionPass {
         debug_assert!(capacity >= per_unit);
         let safe = (capacity / per_unit).max(1) as u32;
         let plan = std::mem::take(&mut self.last_ranges);
-        let plan = (plan.0 == units).then_some(plan.1).unwrap_or_default();
+        let plan = if plan.0 == units { plan.1 } else { Vec::new() };
         let mut done = Vec::new();
         let mut len = safe;
         let mut start = 0u32;
