@@ -44,7 +44,11 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 #define COUNTER_UNSURE_HI 10
 // Soft occlusion, look-up mode: (pair, block) entries of the unsure list.
 #define COUNTER_UNSURE_PAIRS 11
-#define COUNTER_COUNT 12
+// Tile binning: (pair, tile) bins that a tile's view-sample box dropped,
+// per rule (clusters_common.glsl).
+#define COUNTER_CLUSTER_LIGHT_SIDE 12
+#define COUNTER_CLUSTER_BEHIND_CLOSED 13
+#define COUNTER_COUNT 14
 
 // Frame-wide parameters (push constants).
 struct LightPush {

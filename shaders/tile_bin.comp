@@ -2,18 +2,22 @@
 // Conservative binning of (caster, face) pairs into tiles of
 // TILE x TILE light texels: every tile the pair's projection may touch.
 // SCATTER = 0 counts pairs per tile; SCATTER = 1 writes them at the
-// scanned offsets. Twin: cpu::tile_bin::bin_pairs.
+// scanned offsets. A tile's view-sample box drops the casters that cannot
+// block any of its samples (clusters_common.glsl). Twin:
+// cpu::tile_bin::bin_pairs.
 #extension GL_GOOGLE_include_directive : require
-#include "shadow_common.glsl"
+#include "clusters_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 layout(constant_id = 1) const uint SCATTER = 0u;
 
 layout(set = 0, binding = 0) readonly buffer Pairs { CasterFace pairs[]; };
-layout(set = 0, binding = 1) readonly buffer Counters { uint counters[]; };
+layout(set = 0, binding = 1) buffer Counters { uint counters[]; };
 layout(set = 0, binding = 2) buffer TileCounts { uint tile_counts[]; }; // counts, or cursors when scattering
 layout(set = 0, binding = 3) readonly buffer TileOffsets { uint tile_offsets[]; };
 layout(set = 0, binding = 4) writeonly buffer TilePairs { uint tile_pairs[]; };
 layout(set = 0, binding = 5) readonly buffer TileMaxLen { uint tile_max_len[]; }; // 0: the tile has no view samples
+layout(set = 0, binding = 6) readonly buffer Boxes { vec4 boxes[]; }; // per tile: lo (w: valid), hi (clusters_bounds)
+layout(set = 0, binding = 7) uniform usamplerBuffer triangles_tb; // GpuTriangle: 3 texels
 
 void main() {
     uint i = linear_invocation();
@@ -26,6 +30,12 @@ void main() {
     uvec2 t0 = rmin / TILE, t1 = rmax / TILE;
     bool edges = cf.e0.w != 0.0;
     uint base = cf.ids.y * pc.more.z;
+    uvec4 t0v = texelFetch(triangles_tb, int(3u * cf.ids.x));
+    vec3 a = uintBitsToFloat(t0v.xyz);
+    vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * cf.ids.x + 1u)).xyz);
+    vec3 c = uintBitsToFloat(texelFetch(triangles_tb, int(3u * cf.ids.x + 2u)).xyz);
+    ClusterPlane plane = cluster_plane(a, b, c, (t0v.w & TRIANGLE_CLOSED) != 0u);
+    uint light_side = 0u, behind_closed = 0u;
     for (uint ty = t0.y; ty <= t1.y; ty++) {
         for (uint tx = t0.x; tx <= t1.x; tx++) {
             // The part of the tile inside the rectangle.
@@ -38,6 +48,15 @@ void main() {
             if (tile_max_len[tile] == 0u) {
                 continue; // no view sample in this tile: nothing to shadow
             }
+            vec4 box_lo = boxes[2u * tile];
+            if (box_lo.w != 0.0) {
+                uint rule = cull_rule(plane, box_lo.xyz, boxes[2u * tile + 1u].xyz);
+                light_side += rule == CLUSTER_LIGHT_SIDE ? 1u : 0u;
+                behind_closed += rule == CLUSTER_BEHIND_CLOSED ? 1u : 0u;
+                if (rule != CLUSTER_KEEP) {
+                    continue;
+                }
+            }
             if (SCATTER == 0u) {
                 atomicAdd(tile_counts[tile], 1u);
             } else {
@@ -45,5 +64,11 @@ void main() {
                 tile_pairs[slot] = i;
             }
         }
+    }
+    if (SCATTER == 0u && light_side != 0u) {
+        atomicAdd(counters[COUNTER_CLUSTER_LIGHT_SIDE], light_side);
+    }
+    if (SCATTER == 0u && behind_closed != 0u) {
+        atomicAdd(counters[COUNTER_CLUSTER_BEHIND_CLOSED], behind_closed);
     }
 }

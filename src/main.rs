@@ -135,6 +135,11 @@ struct RenderArgs {
     /// Plane look-up texture resolution (overrides [shadows] lut_resolution).
     #[arg(long)]
     lut_resolution: Option<u32>,
+    /// Turn the view-sample clusters off (tile binning then keeps casters
+    /// that cannot shadow a tile's samples; the same result, slower: for
+    /// measuring what the clusters save) (overrides [shadows] clusters).
+    #[arg(long)]
+    no_clusters: bool,
     /// Use the Vulkan device whose name contains this text (also AFS_DEVICE).
     #[arg(long, env = "AFS_DEVICE")]
     device: Option<String>,
@@ -187,6 +192,9 @@ impl RenderArgs {
         }
         if let Some(r) = self.lut_resolution {
             desc.shadows.lut_resolution = r;
+        }
+        if self.no_clusters {
+            desc.shadows.clusters = false;
         }
         desc.validate()?;
         Ok(desc)

@@ -41,6 +41,12 @@ pub struct ShadowStats {
     pub texels_visited: u32,
     /// View-sample–triangle tests.
     pub view_sample_triangle_tests: u32,
+    /// (Pair, tile) bins that view-sample clusters dropped
+    /// ([`crate::gpu::clusters`]): every sample of the tile's box on the
+    /// light's side of the caster's plane.
+    pub bins_dropped_light_side: u32,
+    /// The same, every sample behind a closed caster (soft shadows).
+    pub bins_dropped_behind_closed: u32,
     /// Bytes of GPU buffers the passes used.
     pub gpu_buffer_bytes: u64,
     /// Buffers and images the passes created (0 once warm).
@@ -123,6 +129,8 @@ impl ShadowStats {
             caster_face_pairs: c[counter::PAIRS],
             texels_visited: c[counter::TEXELS_VISITED],
             view_sample_triangle_tests: c[counter::TESTS],
+            bins_dropped_light_side: c[counter::CLUSTER_LIGHT_SIDE],
+            bins_dropped_behind_closed: c[counter::CLUSTER_BEHIND_CLOSED],
             gpu_buffer_bytes: out.buffer_bytes,
             allocations: out.allocations,
             ms,

@@ -2,15 +2,19 @@
 //! of the same name, fed the same inputs (the GPU's own outputs of the
 //! passes before it): the light view's windows (`cpu::light_view`), the
 //! texel lists' counts and texels (`cpu::texel_lists`), the tile bins
-//! (`cpu::tile_bin`), the hard resolve and the soft resolve
+//! with their view-sample boxes (`cpu::tile_bin`, `cpu::clusters`), the
+//! hard resolve and the soft resolve
 //! (`cpu::resolve`). The passes keep their buffers across frames, so the
 //! test reads them where the run left them.
 
+use alias_free_shadows::cpu::clusters::{tile_boxes, ClusterLight};
 use alias_free_shadows::cpu::light_view::{fit_windows, LightView};
 use alias_free_shadows::cpu::resolve::{resolve_hard, resolve_soft};
 use alias_free_shadows::cpu::texel_lists::{build_texel_lists, NOT_LISTED};
-use alias_free_shadows::cpu::tile_bin::{bin_pairs, caster_face_from_gpu, TILE};
-use alias_free_shadows::gpu::shared::{counter, GpuCasterFace, GpuLightFace, GpuViewSample};
+use alias_free_shadows::cpu::tile_bin::{bin_pairs, caster_face_from_gpu, BinClusters, TILE};
+use alias_free_shadows::gpu::shared::{
+    counter, GpuCasterFace, GpuLightFace, GpuViewSample, TRIANGLE_CLOSED,
+};
 use alias_free_shadows::gpu::{gpu_inputs, ShadowPipeline, SoftLight};
 use alias_free_shadows::oracle::Oracle;
 use alias_free_shadows::render;
@@ -121,26 +125,11 @@ fn check_hard_passes(
     }
 
     // Tile bins: the GPU's pairs binned by the twin, per tile as sets.
-    let c: Vec<u32> = read(ctx, &passes.counters, counter::COUNT);
-    let pair_count = c[counter::PAIRS] as usize;
-    let gpu_pairs: Vec<GpuCasterFace> = read(ctx, &passes.casters.pairs, pair_count);
-    let pairs: Vec<_> = gpu_pairs.iter().map(caster_face_from_gpu).collect();
-    let tiles = faces * (tpr * tpr) as usize;
-    let occupied: Vec<bool> = (0..tiles)
-        .map(|t| counts[t * 64..(t + 1) * 64].iter().any(|&c| c > 0))
-        .collect();
-    let bins = bin_pairs(&pairs, tpr, &occupied);
-    let offsets: Vec<u32> = read(ctx, &passes.tile_bin.tile_offsets, tiles + 1);
-    let total = offsets[tiles] as usize;
-    let tile_pairs: Vec<u32> = read(ctx, &passes.tile_bin.tile_pairs, total);
-    let mut binned = 0;
-    for (t, want) in bins.iter().enumerate() {
-        let mut got = tile_pairs[offsets[t] as usize..offsets[t + 1] as usize].to_vec();
-        got.sort_unstable();
-        assert_eq!(&got, want, "tile {t}: binned pairs");
-        binned += got.len();
-    }
-    assert_eq!(binned, total);
+    let cluster_light = match *light {
+        LightView::Point { position } => ClusterLight::Point(position),
+        LightView::Directional { direction } => ClusterLight::Directional(direction),
+    };
+    let (pair_count, total) = check_bins(ctx, pipeline, inp, faces, tpr, cluster_light);
 
     // Hard resolve: the shadow flags per list slot to lit per sample.
     let slots: Vec<u32> = read(ctx, &passes.texel_lists.sample_slot, n);
@@ -161,6 +150,89 @@ fn check_hard_passes(
         total > 0 && !lists.list.is_empty(),
         "the case must exercise the passes"
     );
+}
+
+/// The view-sample boxes and tile bins of the last run against their
+/// twins (fed the GPU's lists and pairs); returns (pairs, binned pairs).
+fn check_bins(
+    ctx: &GpuContext,
+    pipeline: &ShadowPipeline,
+    inp: &Inputs,
+    faces: usize,
+    tpr: u32,
+    light: ClusterLight,
+) -> (usize, usize) {
+    let passes = pipeline.passes();
+    let tiles = faces * (tpr * tpr) as usize;
+    let texels = tiles * 64;
+    let counts: Vec<u32> = read(ctx, &passes.texel_lists.counts, texels);
+    let offsets: Vec<u32> = read(ctx, &passes.texel_lists.offsets, texels + 1);
+    let listed = offsets[texels] as usize;
+    let list: Vec<[f32; 4]> = read(ctx, &passes.texel_lists.list_samples, listed);
+    let positions: Vec<Vec3> = list.iter().map(|q| Vec3::new(q[0], q[1], q[2])).collect();
+    let tile_offsets: Vec<u32> = (0..=tiles).map(|t| offsets[t * 64]).collect();
+    let boxes = tile_boxes(&tile_offsets, &positions);
+    let gpu_boxes: Vec<[f32; 4]> = read(ctx, &passes.clusters.boxes, 2 * tiles);
+    for (t, b) in boxes.iter().enumerate() {
+        let (lo, hi) = (gpu_boxes[2 * t], gpu_boxes[2 * t + 1]);
+        assert_eq!(lo[3] == 1.0, b.is_some(), "tile {t}: box validity");
+        if let Some(b) = b {
+            assert_eq!(
+                [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]].map(f32::to_bits),
+                [b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z].map(f32::to_bits),
+                "tile {t}: box"
+            );
+        }
+    }
+    let c: Vec<u32> = read(ctx, &passes.counters, counter::COUNT);
+    let pair_count = c[counter::PAIRS] as usize;
+    let gpu_pairs: Vec<GpuCasterFace> = read(ctx, &passes.casters.pairs, pair_count);
+    let pairs: Vec<_> = gpu_pairs.iter().map(caster_face_from_gpu).collect();
+    let occupied: Vec<bool> = (0..tiles)
+        .map(|t| counts[t * 64..(t + 1) * 64].iter().any(|&c| c > 0))
+        .collect();
+    let triangles: Vec<([Vec3; 3], bool)> = inp
+        .gpu_triangles
+        .iter()
+        .map(|t| {
+            let v = [t.v0, t.v1, t.v2].map(Vec3::from);
+            (v, t.flags & TRIANGLE_CLOSED != 0)
+        })
+        .collect();
+    let clusters = BinClusters {
+        boxes: &boxes,
+        light,
+        triangles: &triangles,
+    };
+    let bins = bin_pairs(&pairs, tpr, &occupied, Some(&clusters));
+    let offsets: Vec<u32> = read(ctx, &passes.tile_bin.tile_offsets, tiles + 1);
+    let total = offsets[tiles] as usize;
+    let tile_pairs: Vec<u32> = read(ctx, &passes.tile_bin.tile_pairs, total);
+    let mut binned = 0;
+    for (t, want) in bins.tiles.iter().enumerate() {
+        let mut got = tile_pairs[offsets[t] as usize..offsets[t + 1] as usize].to_vec();
+        got.sort_unstable();
+        assert_eq!(&got, want, "tile {t}: binned pairs");
+        binned += got.len();
+    }
+    assert_eq!(binned, total);
+    assert_eq!(
+        (
+            c[counter::CLUSTER_LIGHT_SIDE],
+            c[counter::CLUSTER_BEHIND_CLOSED]
+        ),
+        (bins.dropped_light_side, bins.dropped_behind_closed),
+        "bins dropped per rule"
+    );
+    eprintln!(
+        "{}: {} boxes, dropped {} (light side) + {} (behind closed) of {} bins",
+        inp.desc.name,
+        boxes.iter().flatten().count(),
+        bins.dropped_light_side,
+        bins.dropped_behind_closed,
+        total as u32 + bins.dropped_light_side + bins.dropped_behind_closed
+    );
+    (pair_count, total)
 }
 
 #[test]
@@ -214,6 +286,12 @@ fn soft_resolve_matches_its_twin() {
                 Some(&sl),
             )
             .unwrap();
+        let LightView::Point { position } = lv else {
+            panic!("a light with extent is seen from its centre")
+        };
+        let tpr = settings.soft_light_texels.div_ceil(TILE);
+        let sphere = ClusterLight::Sphere(position, sl.bounds().1);
+        check_bins(&ctx, &pipeline, &inp, lv.face_count(), tpr, sphere);
         let passes = pipeline.passes();
         let n = inp.samples.len();
         let words = sl.mask_words();

@@ -3,6 +3,8 @@
 //!
 //! - [`light_view`]: the light's frusta fitted to the view samples;
 //! - [`texel_lists`]: the per-light-texel lists (count, [`scan`], scatter);
+//! - [`clusters`]: each tile's view-sample box and the rules that drop a
+//!   caster for it;
 //! - [`casters`]: caster planes and conservative projections;
 //! - [`tile_bin`]: the pairs binned per tile;
 //! - [`occlusion`]: hard-shadow occlusion over the touched texels;
@@ -12,6 +14,7 @@
 //! - [`hard_shadows`]: the hard-shadow twins chained into a whole frame.
 
 pub mod casters;
+pub mod clusters;
 pub mod hard_shadows;
 pub mod light_view;
 pub mod occlusion;

@@ -1,13 +1,15 @@
 //! CPU twin of the conservative rasterization's binning (`tile_bin.comp`,
 //! paper §3.2): every (caster, face) pair goes into the list of each tile
 //! of [`TILE`]² light texels that its texel rectangle and edge functions
-//! may touch, unless the tile holds no view sample.
+//! may touch, unless the tile holds no view sample or the tile's
+//! view-sample box drops the caster ([`crate::cpu::clusters`]).
 //!
 //! The GPU appends pairs to a tile's list in atomic order, so its lists
 //! equal the twin's as sets. [`crate::cpu::occlusion`] visits the touched
 //! texels directly, without tiles: a reference for the binning too.
 
 use super::casters::{square_overlaps, CasterFace};
+use super::clusters::{cluster_plane, cull_rule, ClusterLight, ClusterRule, TileBox};
 use crate::gpu::shared::GpuCasterFace;
 
 /// Texels per side of a rasterization tile (`TILE` in `shadow_common.glsl`).
@@ -60,17 +62,58 @@ pub fn tiles_touched(cf: &CasterFace) -> Vec<(u32, u32)> {
     out
 }
 
-/// Per tile (index `face · tiles_per_row² + y · tiles_per_row + x`), the
-/// indices into `pairs` of the pairs binned there; `occupied[tile]`:
-/// whether the tile holds any view sample.
-pub fn bin_pairs(pairs: &[CasterFace], tiles_per_row: u32, occupied: &[bool]) -> Vec<Vec<u32>> {
+/// The view-sample clusters the binning tests casters against.
+pub struct BinClusters<'a> {
+    /// Per tile, the box of its listed samples.
+    pub boxes: &'a [Option<TileBox>],
+    pub light: ClusterLight,
+    /// Per triangle of the run: vertices (camera-relative) and whether it
+    /// belongs to a closed mesh.
+    pub triangles: &'a [([glam::Vec3; 3], bool)],
+}
+
+/// What binning kept and dropped.
+#[derive(Clone, Debug, Default)]
+pub struct Bins {
+    /// Per tile (index `face · tiles_per_row² + y · tiles_per_row + x`), the
+    /// indices into the pairs of the pairs binned there.
+    pub tiles: Vec<Vec<u32>>,
+    /// (Pair, tile) bins dropped by each cluster rule.
+    pub dropped_light_side: u32,
+    pub dropped_behind_closed: u32,
+}
+
+/// Bins every pair into the tiles it touches; `occupied[tile]`: whether the
+/// tile holds any view sample.
+pub fn bin_pairs(
+    pairs: &[CasterFace],
+    tiles_per_row: u32,
+    occupied: &[bool],
+    clusters: Option<&BinClusters>,
+) -> Bins {
     let per_face = tiles_per_row * tiles_per_row;
-    let mut bins = vec![Vec::new(); occupied.len()];
+    let mut bins = Bins {
+        tiles: vec![Vec::new(); occupied.len()],
+        ..Bins::default()
+    };
     for (i, cf) in pairs.iter().enumerate() {
+        let plane = clusters.map(|c| {
+            let (v, closed) = c.triangles[cf.triangle as usize];
+            cluster_plane(v, closed, &c.light)
+        });
         for (tx, ty) in tiles_touched(cf) {
             let tile = (cf.face * per_face + ty * tiles_per_row + tx) as usize;
-            if occupied[tile] {
-                bins[tile].push(i as u32);
+            if !occupied[tile] {
+                continue;
+            }
+            let rule = match (clusters, &plane) {
+                (Some(c), Some(p)) => c.boxes[tile].and_then(|b| cull_rule(p, &b, &c.light)),
+                _ => None,
+            };
+            match rule {
+                Some(ClusterRule::LightSide) => bins.dropped_light_side += 1,
+                Some(ClusterRule::BehindClosed) => bins.dropped_behind_closed += 1,
+                None => bins.tiles[tile].push(i as u32),
             }
         }
     }

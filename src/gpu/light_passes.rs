@@ -7,6 +7,7 @@
 
 use crate::cpu::light_view::LightView;
 use crate::gpu::casters::CasterPass;
+use crate::gpu::clusters::ClusterPass;
 use crate::gpu::light_frame::Recording;
 use crate::gpu::light_frame::{LightFrame, LightInputs};
 use crate::gpu::light_view::LightViewPass;
@@ -75,6 +76,7 @@ pub enum Ran {
 pub struct LightPasses {
     pub light_view: LightViewPass,
     pub texel_lists: TexelListPass,
+    pub clusters: ClusterPass,
     pub casters: CasterPass,
     pub tile_bin: TileBinPass,
     pub occlusion: OcclusionPass,
@@ -92,6 +94,7 @@ impl LightPasses {
         Ok(LightPasses {
             light_view: LightViewPass::new(ctx)?,
             texel_lists: TexelListPass::new(ctx)?,
+            clusters: ClusterPass::new(ctx)?,
             casters: CasterPass::new(ctx)?,
             tile_bin: TileBinPass::new(ctx)?,
             occlusion: OcclusionPass::new(ctx)?,
@@ -135,12 +138,14 @@ impl LightPasses {
         // per-light-texel lists of view samples (count, scan, scatter).
         self.light_view.record(r)?;
         self.texel_lists.record(r, &self.light_view.faces)?;
+        // Sintorn et al. 2014: each tile's view samples as one box.
+        self.clusters.record(r, &self.texel_lists)?;
         // §3.3, §4.1: each caster's planes and its projection or influence
-        // region; §3.2: conservatively rasterized, binned per tile.
+        // region; §3.2: conservatively rasterized, binned per tile, less the
+        // tiles whose box it cannot shadow.
         self.casters.record(r, &self.light_view.faces, counters)?;
-        let (casters, lists) = (&self.casters, &self.texel_lists);
-        self.tile_bin
-            .record_count(r, casters, lists, counters, soft)?;
+        let bins = (&self.casters, &self.texel_lists, &self.clusters);
+        self.tile_bin.record_count(r, bins, counters, soft)?;
         r.submit()?;
         // Only now is the number of binned pairs known: past the binding
         // limit, the triangles run again in smaller batches.
@@ -149,14 +154,14 @@ impl LightPasses {
         if binned_bytes > ctx.info().limits.max_storage_buffer_range as u64 && frame.nt > 1 {
             return Ok(Ran::TooManyPairs { binned_bytes });
         }
-        self.tile_bin
-            .record_scatter(r, totals, casters, lists, counters)?;
+        self.tile_bin.record_scatter(r, totals, bins, counters)?;
         r.frame.set_units(totals.units);
 
         // §3.3, §4.2: every listed view sample against its tile's casters:
         // one bit, or a light-sample bitmask ORed over the casters; then
         // visibility = visible light samples / light samples.
-        let passes = (lists, casters, &self.tile_bin);
+        let passes = (&self.texel_lists, &self.casters, &self.tile_bin);
+        let lists = &self.texel_lists;
         match soft {
             None => {
                 self.occlusion.record(r, passes, counters)?;
@@ -187,6 +192,7 @@ impl LightPasses {
         self.counters.get(ctx, 4 * counter::COUNT as u64)?;
         self.light_view.prepare(ctx)?;
         self.texel_lists.prepare(ctx, frame)?;
+        self.clusters.prepare(ctx, frame)?;
         self.casters.prepare(ctx, frame)?;
         self.tile_bin.prepare(ctx, frame)?;
         self.resolve.prepare(ctx, frame)?;
@@ -241,6 +247,7 @@ impl LightPasses {
             + self.counters.len()
             + self.light_view.bytes()
             + self.texel_lists.bytes()
+            + self.clusters.bytes()
             + self.casters.bytes()
             + self.tile_bin.bytes()
             + self.resolve.result.len();

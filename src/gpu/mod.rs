@@ -8,6 +8,8 @@
 //! - [`light_view`]: the light's frusta fitted to the view samples (§4.3);
 //! - [`texel_lists`]: per-light-texel lists of view samples: count, [`scan`],
 //!   scatter (§3.1);
+//! - [`clusters`]: each tile's view samples as one box, against which tile
+//!   binning drops the casters that cannot shadow it (Sintorn et al. 2014);
 //! - [`casters`]: each caster's planes and its projection or influence
 //!   region (§3.3, §4.1);
 //! - [`tile_bin`]: the conservative rasterization of those over tiles of
@@ -26,6 +28,7 @@
 
 pub mod batches;
 pub mod casters;
+pub mod clusters;
 pub mod dispatch;
 pub mod light_frame;
 pub mod light_passes;

@@ -126,6 +126,12 @@ impl ShadowPipeline {
         self.passes.soft_occlusion.list_limit = limit;
     }
 
+    /// Turns the view-sample clusters on or off (on by default; the results
+    /// are the same, off only to measure what they save).
+    pub fn set_clusters(&mut self, on: bool) {
+        self.passes.clusters.enabled = on;
+    }
+
     /// Limits the view samples per run (tests: forces the batched path that
     /// large runs take); `None` lifts the limit.
     pub fn set_batch_limit(&mut self, limit: Option<usize>) {

@@ -163,7 +163,12 @@ pub mod counter {
     pub const UNSURE_HI: usize = 10;
     /// Soft occlusion, look-up mode: (pair, block) entries with unsure bits.
     pub const UNSURE_PAIRS: usize = 11;
-    pub const COUNT: usize = 12;
+    /// Tile binning: (pair, tile) bins dropped because every view sample of
+    /// the tile's box lies on the light's side of the caster's plane.
+    pub const CLUSTER_LIGHT_SIDE: usize = 12;
+    /// The same, because every sample lies behind a closed caster (soft).
+    pub const CLUSTER_BEHIND_CLOSED: usize = 13;
+    pub const COUNT: usize = 14;
 }
 
 /// `LightPush`: push constants of every shadow pass of a light, hard and soft.

@@ -1,6 +1,7 @@
 //! Conservative rasterization of the casters over the light texels (paper
 //! §3.2), binned per tile of [`TILE`]² texels: `tile_bin.comp` counts the
-//! tiles each (caster, face) pair's rectangle and edges may touch, a scan
+//! tiles each (caster, face) pair's rectangle and edges may touch (less
+//! those whose view-sample box it cannot shadow, [`crate::gpu::clusters`]), a scan
 //! gives each tile's offset, and the same shader scatters the pairs into
 //! per-tile lists. `tile_bin_units.comp` sizes each tile's occlusion work
 //! units (chunks of its pairs times chunks of its listed samples, so that no
@@ -9,7 +10,8 @@
 //!
 //! [`TILE`]: crate::gpu::light_frame::TILE
 
-use crate::gpu::dispatch::{groups, storage};
+use crate::gpu::clusters::ClusterPass;
+use crate::gpu::dispatch::{groups, storage, RGBA32UI};
 use crate::gpu::light_frame::LightFrame;
 use crate::gpu::light_frame::Recording;
 use crate::gpu::scan::ScanPass;
@@ -18,8 +20,8 @@ use crate::gpu::shared::LightPush;
 use crate::gpu::soft_light::{SoftLight, SoftMode};
 use crate::gpu::{casters::CasterPass, texel_lists::TexelListPass};
 use crate::vulkan::{
-    Barrier, CommandRecorder, ComputePipeline, ComputePipelineDesc, DescriptorKind, GpuContext,
-    GrowBuffer,
+    Barrier, Binding, CommandRecorder, ComputePipeline, ComputePipelineDesc, DescriptorKind,
+    GpuContext, GrowBuffer,
 };
 use crate::Result;
 
@@ -71,6 +73,16 @@ impl TileBinPass {
     /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let sb = DescriptorKind::StorageBuffer;
+        let bin_bindings = [
+            sb,
+            sb,
+            sb,
+            sb,
+            sb,
+            sb,
+            sb,
+            DescriptorKind::UniformTexelBuffer,
+        ];
         let make = |name, spirv, bindings: &[DescriptorKind], spec: &[(u32, u32)]| {
             ctx.create_compute_pipeline(&ComputePipelineDesc {
                 name,
@@ -81,8 +93,18 @@ impl TileBinPass {
             })
         };
         Ok(TileBinPass {
-            count: make("tile_bin_count", shaders::TILE_BIN, &[sb; 6], &[(1, 0)])?,
-            scatter: make("tile_bin_scatter", shaders::TILE_BIN, &[sb; 6], &[(1, 1)])?,
+            count: make(
+                "tile_bin_count",
+                shaders::TILE_BIN,
+                &bin_bindings,
+                &[(1, 0)],
+            )?,
+            scatter: make(
+                "tile_bin_scatter",
+                shaders::TILE_BIN,
+                &bin_bindings,
+                &[(1, 1)],
+            )?,
             units_hard: make("tile_bin_units", shaders::TILE_BIN_UNITS, &[sb; 3], &[])?,
             units_soft: make(
                 "tile_bin_units_soft",
@@ -131,12 +153,12 @@ impl TileBinPass {
     pub fn record_count(
         &mut self,
         r: &mut Recording,
-        casters: &CasterPass,
-        lists: &TexelListPass,
+        (casters, lists, clusters): (&CasterPass, &TexelListPass, &ClusterPass),
         counters: &GrowBuffer,
         soft: Option<&SoftLight>,
     ) -> Result<()> {
         let (pair_capacity, tiles) = (r.frame.pair_capacity, r.frame.tiles);
+        let triangles = r.inputs.triangles;
         r.pass("tile_bin_count", |rec, pc| {
             let bindings = [
                 storage(&casters.pairs),
@@ -145,6 +167,8 @@ impl TileBinPass {
                 storage(&self.tile_offsets),
                 storage(&self.tile_offsets),
                 storage(&lists.tile_max_len),
+                storage(&clusters.boxes),
+                Binding::uniform_texel(triangles, RGBA32UI),
             ];
             rec.dispatch(&self.count, &bindings, pc, groups(pair_capacity))?;
             rec.barrier(Barrier::ComputeToCompute);
@@ -190,10 +214,10 @@ impl TileBinPass {
         &mut self,
         r: &mut Recording,
         totals: BinTotals,
-        casters: &CasterPass,
-        lists: &TexelListPass,
+        (casters, lists, clusters): (&CasterPass, &TexelListPass, &ClusterPass),
         counters: &GrowBuffer,
     ) -> Result<()> {
+        let triangles = r.inputs.triangles;
         self.tile_pairs.get(r.ctx, 4 * totals.pairs as u64)?;
         r.cmd.fill_buffer(self.tile_counts.slice(), 0)?;
         r.cmd.barrier(Barrier::TransferToCompute);
@@ -206,6 +230,8 @@ impl TileBinPass {
                 storage(&self.tile_offsets),
                 storage(&self.tile_pairs),
                 storage(&lists.tile_max_len),
+                storage(&clusters.boxes),
+                Binding::uniform_texel(triangles, RGBA32UI),
             ];
             rec.dispatch(&self.scatter, &bindings, pc, groups(pair_capacity))?;
             rec.barrier(Barrier::ComputeToCompute);

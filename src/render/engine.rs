@@ -120,6 +120,7 @@ impl Engine {
             .ok_or_else(|| Error::InvalidInput("soft shadows need a light with extent".into()))?;
         let (vs, ts) = user_gpu_inputs(scene, eye, samples);
         let texels = settings.soft_light_texels;
+        self.shadows.set_clusters(settings.clusters);
         let out = self
             .shadows
             .run(&self.ctx, &vs, &ts, &lv, texels, Some(&sl))?;
@@ -163,6 +164,15 @@ impl Engine {
     /// [`crate::gpu::plane_lut::table_cache::default_dir`].
     pub fn set_table_cache(&mut self, dir: Option<std::path::PathBuf>) {
         self.shadows.set_table_cache(dir);
+    }
+
+    /// Turns the view-sample clusters ([`crate::gpu::clusters`]) on or off
+    /// for [`Engine::hard_shadows`] and [`Engine::hard_shadows_gpu`] (on by
+    /// default; the results are the same, off only to measure what they
+    /// save). Frames and [`Engine::soft_shadows`] take it from their
+    /// [`ShadowSettings::clusters`].
+    pub fn set_clusters(&mut self, on: bool) {
+        self.shadows.set_clusters(on);
     }
 
     /// Limits the entries of look-up mode's unsure list per range of work

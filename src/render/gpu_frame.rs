@@ -120,6 +120,7 @@ impl Engine {
                 (lv, Some(sl), desc.shadows.soft_light_texels)
             }
         };
+        self.shadows.set_clusters(desc.shadows.clusters);
         let t = Instant::now();
         let view_buf = self.view.samples();
         let tri_buf = self.triangles.buffer();

@@ -56,6 +56,10 @@ pub struct ShadowSettings {
     pub mode: SoftMode,
     /// Resolution of the plane look-up texture (`lut_resolution`³).
     pub lut_resolution: u32,
+    /// View-sample clusters: tile binning drops the casters that cannot
+    /// shadow any sample of a tile's box ([`crate::gpu::clusters`]). The
+    /// results are the same either way; off only to measure what they save.
+    pub clusters: bool,
 }
 
 impl Default for ShadowSettings {
@@ -65,6 +69,7 @@ impl Default for ShadowSettings {
             soft_light_texels: 256,
             mode: SoftMode::Lut,
             lut_resolution: 128,
+            clusters: true,
         }
     }
 }

@@ -1,0 +1,83 @@
+//! View-sample clusters (Sintorn, Kämpe, Olsson, Assarsson 2014): per tile
+//! of light texels, the box of its listed view samples
+//! (`clusters_bounds.comp`). Tile binning tests each caster against the
+//! boxes of the tiles it covers and drops it where it cannot block any of
+//! their samples (`clusters_common.glsl`: every sample on the light's side
+//! of its plane, or behind a closed caster), so that occlusion never visits
+//! the pair. The rules are occlusion's own per-sample early outs taken for a
+//! whole box with a margin far above their rounding: the masks stay
+//! bit-identical. CPU twin: [`crate::cpu::clusters`].
+
+use crate::gpu::dispatch::{groups, storage, RGBA32UI};
+use crate::gpu::light_frame::{LightFrame, Recording};
+use crate::gpu::shaders;
+use crate::gpu::shared::LightPush;
+use crate::gpu::texel_lists::TexelListPass;
+use crate::vulkan::{
+    Barrier, Binding, ComputePipeline, ComputePipelineDesc, DescriptorKind, GpuContext, GrowBuffer,
+};
+use crate::Result;
+
+/// The bounds pipeline and the boxes it writes.
+pub struct ClusterPass {
+    bounds: ComputePipeline,
+    /// Per tile: two `vec4`, lo (w: 1 when valid) and hi.
+    pub boxes: GrowBuffer,
+    /// When false the boxes are all invalid (zeros): nothing is culled.
+    pub enabled: bool,
+}
+
+impl ClusterPass {
+    /// Builds the pipeline.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let bounds = ctx.create_compute_pipeline(&ComputePipelineDesc {
+            name: "clusters_bounds",
+            spirv: shaders::CLUSTERS_BOUNDS,
+            bindings: &[
+                DescriptorKind::StorageBuffer,
+                DescriptorKind::UniformTexelBuffer,
+                DescriptorKind::StorageBuffer,
+            ],
+            push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
+            specialization: &[],
+        })?;
+        Ok(ClusterPass {
+            bounds,
+            boxes: GrowBuffer::storage("cluster_boxes"),
+            enabled: true,
+        })
+    }
+
+    /// Sizes the boxes for the frame's tiles.
+    pub fn prepare(&mut self, ctx: &GpuContext, frame: &LightFrame) -> Result<()> {
+        self.boxes.get(ctx, 32 * frame.tiles as u64)?;
+        Ok(())
+    }
+
+    /// Records the boxes of the tiles' listed samples (after the lists'
+    /// scatter), or their clear when culling is off.
+    pub fn record(&self, r: &mut Recording, lists: &TexelListPass) -> Result<()> {
+        let tiles = r.frame.tiles;
+        r.pass("cluster_bounds", |rec, pc| {
+            if !self.enabled {
+                rec.fill_buffer(self.boxes.slice(), 0)?;
+                rec.barrier(Barrier::TransferToCompute);
+                return Ok(());
+            }
+            rec.barrier(Barrier::ComputeToCompute);
+            let bindings = [
+                storage(&lists.offsets),
+                Binding::uniform_texel(&lists.list_samples, RGBA32UI),
+                storage(&self.boxes),
+            ];
+            rec.dispatch(&self.bounds, &bindings, pc, groups(tiles))?;
+            rec.barrier(Barrier::ComputeToCompute);
+            Ok(())
+        })
+    }
+
+    /// Bytes this run binds.
+    pub fn bytes(&self) -> u64 {
+        self.boxes.len()
+    }
+}
