@@ -205,6 +205,34 @@ impl RenderArgs {
 /// next to its own (`.partial.NAME`) and is renamed only once the dump is
 /// written too, so that a failed run never leaves an image that looks
 /// complete (the dump does the same with its files).
+/// `-o` inside the `--dump` folder may be the dump's own `image.png` (the
+/// same picture, written by both); it may not be another file of the dump.
+fn check_output_paths(args: &RenderArgs) -> Result<()> {
+    let (out, Some(dump)) = (&args.output, &args.dump) else {
+        return Ok(());
+    };
+    let parent = out.parent().filter(|p| !p.as_os_str().is_empty());
+    let parent = parent.unwrap_or(std::path::Path::new("."));
+    let same_dir = match (std::path::absolute(parent), std::path::absolute(dump)) {
+        (Ok(a), Ok(b)) => a.components().eq(b.components()),
+        _ => false,
+    };
+    let name = out.file_name().map(|n| n.to_string_lossy().into_owned());
+    let dump_file = |n: &str| {
+        ["position.exr", "normal.exr", "scene.json", "stats.json"].contains(&n)
+            || (n.starts_with("visibility_") && n.ends_with(".exr"))
+    };
+    match name {
+        Some(n) if same_dir && dump_file(&n) => Err(Error::InvalidInput(format!(
+            "-o {} would overwrite the dump's own {n} in --dump {}: choose another name \
+             (the dump holds the image as image.png)",
+            out.display(),
+            dump.display()
+        ))),
+        _ => Ok(()),
+    }
+}
+
 fn write_outputs(args: &RenderArgs, frame: &Frame) -> Result<()> {
     let out = &args.output;
     let name = out
@@ -213,7 +241,9 @@ fn write_outputs(args: &RenderArgs, frame: &Frame) -> Result<()> {
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
     }
-    let mut tmp_name = std::ffi::OsString::from(".partial.");
+    // Not the dump's `.partial.` prefix: `-o DUMP/image.png` would share its
+    // temporary name with the dump's own image.
+    let mut tmp_name = std::ffi::OsString::from(".partial-output.");
     tmp_name.push(name);
     let tmp = out.with_file_name(tmp_name);
     let written = (|| {
@@ -308,6 +338,7 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => {
             let desc = args.scene()?;
+            check_output_paths(&args)?;
             let mut engine = Engine::new(&ContextOptions {
                 device: args.device.clone(),
                 ..Default::default()
@@ -325,6 +356,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Reference(args) => {
             let desc = args.scene()?;
+            check_output_paths(&args)?;
             let frame = render_reference(
                 &desc,
                 FrameOptions {

@@ -74,7 +74,7 @@ fn expect_usage_error(args: &[&str], dir: &Path, needles: &[&str]) {
 
 /// Runs `afs` expecting exit code `code`, an error line, every needle, no
 /// panic, and no output left behind: neither the image (`-o`, default
-/// `out.png`) nor its temporary `.partial.` file.
+/// `out.png`) nor its temporary `.partial-output.` file.
 fn expect_exit(args: &[&str], dir: &Path, code: i32, needles: &[&str]) {
     let o = afs(args, dir);
     let t = text(&o);
@@ -108,7 +108,7 @@ fn expect_exit(args: &[&str], dir: &Path, code: i32, needles: &[&str]) {
         output.display()
     );
     let partial = output.with_file_name(format!(
-        ".partial.{}",
+        ".partial-output.{}",
         output.file_name().unwrap().to_string_lossy()
     ));
     assert!(!partial.exists(), "afs {args:?} left {}", partial.display());
@@ -875,5 +875,56 @@ fn failed_runs_leave_no_output() {
     let o = afs(&args(&["-o", "img.png", "--dump", "dump"]), d);
     assert!(o.status.success(), "{}", text(&o));
     assert!(d.join("img.png").is_file());
-    assert!(!d.join(".partial.img.png").exists());
+    assert!(!d.join(".partial-output.img.png").exists());
+}
+
+/// `-o` inside the `--dump` folder: its `image.png` is the dump's own
+/// picture and both are written; another of the dump's files is refused up
+/// front, leaving nothing behind.
+#[test]
+fn output_inside_the_dump_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let args = |extra: &[&'static str]| {
+        let mut a = vec![
+            "render",
+            "builtin:plane_sphere",
+            "--width",
+            "24",
+            "--height",
+            "16",
+            "--quiet",
+        ];
+        a.extend_from_slice(extra);
+        a
+    };
+    let o = afs(&args(&["--dump", "dump", "-o", "dump/image.png"]), d);
+    assert!(o.status.success(), "{}", text(&o));
+    let img = image::open(d.join("dump/image.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (24, 16));
+    for f in [
+        "position.exr",
+        "visibility_0.exr",
+        "scene.json",
+        "stats.json",
+    ] {
+        assert!(d.join("dump").join(f).is_file(), "dump lacks {f}");
+    }
+    let left: Vec<String> = std::fs::read_dir(d.join("dump"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(".partial"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    // The same through another spelling of the folder.
+    let o = afs(&args(&["--dump", "./dump2", "-o", "dump2/./image.png"]), d);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(d.join("dump2/image.png").is_file());
+    // Another file of the dump: refused before anything is written.
+    expect_error(
+        &args(&["--dump", "dump3", "-o", "dump3/scene.json"]),
+        d,
+        &["would overwrite the dump's own scene.json"],
+    );
+    assert!(!d.join("dump3").exists());
 }
