@@ -124,6 +124,14 @@ struct RenderArgs {
     /// Override the number of samples of every area or volumetric light (1 to 1024).
     #[arg(long)]
     samples: Option<u32>,
+    /// Replace the scene's lights with one light: KIND[:KEY=VALUE,...], KIND
+    /// point, directional, sphere, disk or rect; keys radius (default a
+    /// tenth of the light's distance to the scene) and samples (default 128).
+    /// It stands where the scene's first light is and faces the scene, e.g.
+    /// `--light sphere` or `--light disk:radius=0.2,samples=256` for soft
+    /// shadows from a glTF without a scene file.
+    #[arg(long, value_name = "SPEC")]
+    light: Option<String>,
     /// Light-texel map resolution (overrides [shadows] light_texels and soft_light_texels).
     #[arg(long)]
     light_texels: Option<u32>,
@@ -160,6 +168,9 @@ impl RenderArgs {
         let mut desc = file::load(&self.scene)?;
         if self.ground {
             file::place_on_ground(&mut desc.scene);
+        }
+        if let Some(spec) = &self.light {
+            file::replace_light(&mut desc, spec)?;
         }
         if let Some(w) = self.width {
             desc.camera.width = w;

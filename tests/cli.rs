@@ -928,3 +928,46 @@ fn output_inside_the_dump_folder() {
     );
     assert!(!d.join("dump3").exists());
 }
+
+/// `--light` gives a glTF soft shadows without a scene file: the stats show
+/// the soft path with the asked samples; a bad spec is a named error.
+#[test]
+fn light_flag_replaces_the_scene_lights() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write(
+        d,
+        "tri.bin",
+        f32_bytes(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]),
+    );
+    let gltf = write(d, "tri.gltf", triangle_gltf("tri.bin"));
+    let o = afs(
+        &[
+            "render",
+            &gltf,
+            "--ground",
+            "--light",
+            "sphere:samples=8",
+            "--width",
+            "24",
+            "--height",
+            "24",
+            "--stats",
+            "--quiet",
+            "-o",
+            "soft.png",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let stats: serde_json::Value = serde_json::from_str(&out[out.find('{').unwrap()..]).unwrap();
+    let light = &stats["lights"][0];
+    assert_eq!(light["path"], "gpu soft shadows", "{light}");
+    assert_eq!(light["stats"]["light_samples"], 8, "{light}");
+    expect_error(
+        &["render", &gltf, "--light", "lamp", "-o", "x.png"],
+        d,
+        &["--light lamp", "unknown kind \"lamp\""],
+    );
+}

@@ -539,9 +539,170 @@ pub fn place_on_ground(scene: &mut Scene) {
     }
 }
 
+/// Replaces the scene's lights with the one `spec` describes (the CLI's
+/// `--light`): `KIND[:KEY=VALUE,...]`, KIND one of `point`, `directional`,
+/// `sphere`, `disk`, `rect`; keys `radius` (sphere and disk radius, half
+/// the rect's side; default a tenth of the light's distance to the scene's
+/// centre) and `samples` (area lights; default 128). The light stands where
+/// the scene's first light is (its centre), else where [`default_view`]
+/// puts one; planar and directional lights face the scene's centre.
+pub fn replace_light(desc: &mut SceneDescription, spec: &str) -> Result<()> {
+    let err = |m: String| Error::InvalidInput(format!("--light {spec}: {m}"));
+    let (kind, rest) = spec.split_once(':').unwrap_or((spec, ""));
+    let (mut radius, mut samples) = (None, 128u32);
+    for kv in rest.split(',').filter(|s| !s.is_empty()) {
+        let (k, v) = kv
+            .split_once('=')
+            .ok_or_else(|| err(format!("{kv:?} is not KEY=VALUE")))?;
+        match k {
+            "radius" => {
+                let r: f64 = v
+                    .parse()
+                    .map_err(|_| err(format!("radius {v:?} is not a number")))?;
+                if !(r > 0.0 && r.is_finite()) {
+                    return Err(err(format!("radius must be positive and finite, got {v}")));
+                }
+                radius = Some(r);
+            }
+            "samples" => {
+                samples = v
+                    .parse()
+                    .ok()
+                    .filter(|n| (1..=crate::gpu::MAX_SOFT_SAMPLES as u32).contains(n))
+                    .ok_or_else(|| {
+                        err(format!(
+                            "samples {v:?} is not a whole number from 1 to {}",
+                            crate::gpu::MAX_SOFT_SAMPLES
+                        ))
+                    })?;
+            }
+            _ => return Err(err(format!("unknown key {k:?} (radius, samples)"))),
+        }
+    }
+    let (lo, hi) = desc
+        .scene
+        .bounds()
+        .ok_or_else(|| err("the scene is empty".into()))?;
+    let centre = (lo + hi) * 0.5;
+    let position = desc
+        .lights
+        .first()
+        .and_then(|l| l.center())
+        .unwrap_or_else(|| default_view(&desc.scene).1.center().unwrap_or(hi));
+    let toward = centre - position;
+    let distance = toward.length();
+    if !(distance > 0.0 && distance.is_finite()) {
+        return Err(err("the light is at the scene's centre".into()));
+    }
+    let normal = toward / distance;
+    let tangent = default_tangent(normal);
+    let r = radius.unwrap_or(0.1 * distance);
+    if radius.is_some() && !matches!(kind, "sphere" | "disk" | "rect") {
+        return Err(err(format!("a {kind} light has no radius")));
+    }
+    let (shape, samples) = match kind {
+        "point" => (LightShape::Point { position }, 1),
+        "directional" => (LightShape::Directional { direction: normal }, 1),
+        "sphere" => (
+            LightShape::Sphere {
+                position,
+                radius: r,
+            },
+            samples,
+        ),
+        "disk" => (
+            LightShape::Disk {
+                position,
+                radius: r,
+                normal,
+                tangent,
+            },
+            samples,
+        ),
+        "rect" => (
+            LightShape::Rect {
+                position,
+                size: DVec2::splat(2.0 * r),
+                normal,
+                tangent,
+            },
+            samples,
+        ),
+        _ => {
+            return Err(err(format!(
+                "unknown kind {kind:?} (point, directional, sphere, disk, rect)"
+            )))
+        }
+    };
+    let template = desc
+        .lights
+        .first()
+        .cloned()
+        .unwrap_or(default_view(&desc.scene).1);
+    desc.lights = vec![Light {
+        shape,
+        samples,
+        ..template
+    }];
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn replace_light_puts_the_kind_where_the_light_was() {
+        let mut desc = load("builtin:plane_sphere").unwrap();
+        let at = desc.lights[0].center().unwrap();
+        let (lo, hi) = desc.scene.bounds().unwrap();
+        let d = at.distance((lo + hi) * 0.5);
+        replace_light(&mut desc, "sphere").unwrap();
+        assert_eq!(desc.lights.len(), 1);
+        match desc.lights[0].shape {
+            LightShape::Sphere { position, radius } => {
+                assert_eq!(position, at);
+                assert!((radius - 0.1 * d).abs() < 1e-12);
+            }
+            ref s => panic!("{s:?}"),
+        }
+        assert_eq!(desc.lights[0].samples, 128);
+        replace_light(&mut desc, "disk:radius=0.25,samples=64").unwrap();
+        let LightShape::Disk { radius, normal, .. } = desc.lights[0].shape else {
+            panic!("a disk")
+        };
+        assert_eq!((radius, desc.lights[0].samples), (0.25, 64));
+        // Facing the scene's centre.
+        assert!(normal.dot(((lo + hi) * 0.5 - at).normalize()) > 0.999_999);
+        replace_light(&mut desc, "point").unwrap();
+        assert_eq!(desc.lights[0].samples, 1);
+        replace_light(&mut desc, "rect:radius=0.5").unwrap();
+        assert!(
+            matches!(desc.lights[0].shape, LightShape::Rect { size, .. } if size == DVec2::ONE)
+        );
+        desc.validate().unwrap();
+    }
+
+    #[test]
+    fn replace_light_names_what_is_wrong() {
+        let mut desc = load("builtin:plane_sphere").unwrap();
+        for (spec, needle) in [
+            ("lamp", "unknown kind \"lamp\""),
+            ("sphere:radius=-1", "radius must be positive"),
+            ("sphere:radius=x", "radius \"x\" is not a number"),
+            (
+                "sphere:samples=0",
+                "samples \"0\" is not a whole number from 1 to 1024",
+            ),
+            ("sphere:samples=2000", "from 1 to 1024"),
+            ("sphere:colour=red", "unknown key \"colour\""),
+            ("sphere:radius", "\"radius\" is not KEY=VALUE"),
+            ("point:radius=1", "a point light has no radius"),
+        ] {
+            let e = replace_light(&mut desc, spec).unwrap_err().to_string();
+            assert!(e.contains(needle) && e.contains(spec), "{spec}: {e}");
+        }
+    }
 
     fn parse(text: &str) -> Result<SceneDescription> {
         parse_scene_file(text, Path::new("/nonexistent/scene.toml"))
