@@ -10,6 +10,9 @@ pub const WG: u32 = 64;
 /// texel-buffer fetch is ~10× faster than a storage-buffer load.
 pub const RGBA32UI: vk::Format = vk::Format::R32G32B32A32_UINT;
 
+/// The same for one `u32` per texel.
+pub const R32UI: vk::Format = vk::Format::R32_UINT;
+
 /// Workgroups of [`WG`] invocations for `n` items, spread over y past the
 /// 65535 a dimension may hold.
 pub fn groups(n: u32) -> [u32; 3] {

@@ -11,7 +11,7 @@
 //! [`TILE`]: crate::gpu::light_frame::TILE
 
 use crate::gpu::clusters::ClusterPass;
-use crate::gpu::dispatch::{groups, storage, RGBA32UI};
+use crate::gpu::dispatch::{groups, storage, R32UI, RGBA32UI};
 use crate::gpu::light_frame::LightFrame;
 use crate::gpu::light_frame::Recording;
 use crate::gpu::scan::ScanPass;
@@ -73,16 +73,8 @@ impl TileBinPass {
     /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let sb = DescriptorKind::StorageBuffer;
-        let bin_bindings = [
-            sb,
-            sb,
-            sb,
-            sb,
-            sb,
-            sb,
-            sb,
-            DescriptorKind::UniformTexelBuffer,
-        ];
+        let tb = DescriptorKind::UniformTexelBuffer;
+        let bin_bindings = [sb, sb, sb, sb, sb, tb, tb, tb];
         let make = |name, spirv, bindings: &[DescriptorKind], spec: &[(u32, u32)]| {
             ctx.create_compute_pipeline(&ComputePipelineDesc {
                 name,
@@ -166,8 +158,8 @@ impl TileBinPass {
                 storage(&self.tile_counts),
                 storage(&self.tile_offsets),
                 storage(&self.tile_offsets),
-                storage(&lists.tile_max_len),
-                storage(&clusters.boxes),
+                Binding::uniform_texel(&lists.tile_max_len, R32UI),
+                Binding::uniform_texel(&clusters.boxes, RGBA32UI),
                 Binding::uniform_texel(triangles, RGBA32UI),
             ];
             rec.dispatch(&self.count, &bindings, pc, groups(pair_capacity))?;
@@ -229,8 +221,8 @@ impl TileBinPass {
                 storage(&self.tile_counts),
                 storage(&self.tile_offsets),
                 storage(&self.tile_pairs),
-                storage(&lists.tile_max_len),
-                storage(&clusters.boxes),
+                Binding::uniform_texel(&lists.tile_max_len, R32UI),
+                Binding::uniform_texel(&clusters.boxes, RGBA32UI),
                 Binding::uniform_texel(triangles, RGBA32UI),
             ];
             rec.dispatch(&self.scatter, &bindings, pc, groups(pair_capacity))?;
