@@ -48,7 +48,10 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 // per rule (clusters_common.glsl).
 #define COUNTER_CLUSTER_LIGHT_SIDE 12
 #define COUNTER_CLUSTER_BEHIND_CLOSED 13
-#define COUNTER_COUNT 14
+// Soft occlusion: (pair, chunk of 64 samples) visits that the chunk's own
+// box or texels ruled out (soft_occlusion.comp, kept_pairs).
+#define COUNTER_CLUSTER_CHUNK 14
+#define COUNTER_COUNT 15
 
 // Frame-wide parameters (push constants).
 struct LightPush {

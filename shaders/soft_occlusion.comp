@@ -22,6 +22,7 @@
 #extension GL_KHR_shader_subgroup_ballot : require
 #define LIGHT_SAMPLES_BINDING 10
 #include "soft_common.glsl"
+#include "clusters_common.glsl"
 layout(local_size_x = 64) in;
 // Compiled once per variant (build.rs): EXACT=1, or LUT_BLOCKS=1..8 (the
 // light's 128-sample blocks) with SURE=0 or 1. Code of the other mode and of unused blocks
@@ -95,6 +96,9 @@ layout(set = 0, binding = 11) uniform usamplerBuffer lut_tb;         // LUT, all
 // SURE mode: the (slot, triangle, block) and unsure bits of each pair whose
 // bits the table leaves unsure, for soft_occlusion_unsure.comp.
 layout(set = 0, binding = 12) writeonly buffer UnsureList { uvec4 unsure_list[]; };
+// Per tile: its view-sample box (clusters_bounds.comp; lo.w = 0: no box,
+// and then no chunk culling either: the clusters are off or the tile too big).
+layout(set = 0, binding = 13) uniform usamplerBuffer boxes_tb;
 #if SURE
 // Look-up mode runs the units in ranges, each flushing its unsure list
 // (soft_occlusion.rs): soft.w is the range's first unit.
@@ -233,9 +237,79 @@ uvec4 past_end(uint block) {
 #define ACC_BLOCK(K) uvec4 acc##K = init##K;
 #define AND_BLOCK(K) all_blocks &= acc##K;
 
+// View-sample clusters per chunk: the unit's pairs that this workgroup's
+// own 64 samples can need (by the tile rules of clusters_common.glsl on
+// the chunk's box, and the chunk's texels against each pair's rectangle),
+// compacted before the loop: on lavapipe every lane runs every iteration,
+// so only a shorter loop saves time. The pairs dropped are ones every lane
+// would skip by occlusion's own early outs: the masks do not change.
+#define MAX_KEPT 512u
+shared uint kept_pairs[MAX_KEPT];
+shared uint kept_count;
+// Per subgroup: its samples' box (xyz) and texel rectangle (w: x | y << 16).
+shared vec4 chunk_lo[64], chunk_hi[64];
+
+// This workgroup's pairs that its samples may need, into kept_pairs; the
+// count of those kept. All invocations call it (barriers).
+uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped) {
+    uint lid = gl_LocalInvocationID.x;
+    // The chunk's box and texel rectangle: per subgroup, then over the
+    // subgroups through shared memory; lanes without a sample add nothing.
+    vec3 inf = vec3(1.0 / 0.0);
+    vec3 sg_lo = subgroupMin(un.has_sample ? x : inf);
+    vec3 sg_hi = subgroupMax(un.has_sample ? x : -inf);
+    uvec2 sg_tmin = subgroupMin(un.has_sample ? un.texel : uvec2(0xffffu));
+    uvec2 sg_tmax = subgroupMax(un.has_sample ? un.texel : uvec2(0u));
+    if (subgroupElect()) {
+        chunk_lo[gl_SubgroupID] = vec4(sg_lo, uintBitsToFloat(sg_tmin.x | (sg_tmin.y << 16)));
+        chunk_hi[gl_SubgroupID] = vec4(sg_hi, uintBitsToFloat(sg_tmax.x | (sg_tmax.y << 16)));
+    }
+    if (lid == 0u) {
+        kept_count = 0u;
+    }
+    barrier();
+    vec3 lo = inf, hi = -inf;
+    uvec2 tmin = uvec2(0xffffu), tmax = uvec2(0u);
+    for (uint j = 0u; j < gl_NumSubgroups; j++) {
+        vec4 l = chunk_lo[j], h = chunk_hi[j];
+        lo = min(lo, l.xyz);
+        hi = max(hi, h.xyz);
+        uint a = floatBitsToUint(l.w), b = floatBitsToUint(h.w);
+        tmin = min(tmin, uvec2(a & 0xffffu, a >> 16));
+        tmax = max(tmax, uvec2(b & 0xffffu, b >> 16));
+    }
+    bool any_sample = lo.x <= hi.x;
+    bool box = any_sample && uintBitsToFloat(texelFetch(boxes_tb, int(2u * un.tile)).w) != 0.0;
+    uint local_dropped = 0u;
+    for (uint k = un.pair_begin + lid; k < un.pair_end; k += 64u) {
+        uint pi = texelFetch(tile_pairs_tb, int(k)).x;
+        bool keep = true;
+        if (box) {
+            uvec4 ids = texelFetch(pairs_tb, int(4u * pi));
+            uvec2 rmin = uvec2(ids.z & 0xffffu, ids.z >> 16);
+            uvec2 rmax = uvec2(ids.w & 0xffffu, ids.w >> 16);
+            uvec4 t0 = texelFetch(triangles_tb, int(3u * ids.x));
+            vec3 a = uintBitsToFloat(t0.xyz);
+            vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 1u)).xyz);
+            vec3 c = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 2u)).xyz);
+            ClusterPlane plane = cluster_plane(a, b, c, (t0.w & TRIANGLE_CLOSED) != 0u);
+            bool rect_misses = any(lessThan(tmax, rmin)) || any(greaterThan(tmin, rmax));
+            keep = !rect_misses && cull_rule(plane, lo, hi) == CLUSTER_KEEP;
+        }
+        if (keep) {
+            kept_pairs[atomicAdd(kept_count, 1u)] = pi;
+        } else {
+            local_dropped++;
+        }
+    }
+    barrier();
+    dropped = local_dropped;
+    return kept_count;
+}
+
 void main() {
     OcclusionUnit un = occlusion_unit();
-    uint begin = un.pair_begin, end = un.pair_end, s = un.slot;
+    uint s = un.slot;
     uvec2 texel = un.texel;
     uint tests = 0u, blocking = 0u, unsure_bits = 0u;
     uint words = light_blocks() * 4u;
@@ -243,10 +317,13 @@ void main() {
     uint first_block = EXACT != 0 ? pc.soft.x : 0u;
     vec3 o = pc.origin.xyz;
     float inv_r = 1.0 / pc.soft_light.x;
+    uvec4 qb = un.has_sample ? texelFetch(list_samples_tb, int(s)) : uvec4(0u);
+    vec3 x = uintBitsToFloat(qb.xyz);
+    uint chunk_dropped;
+    uint kept = keep_pairs(un, x, chunk_dropped);
+    uint begin = 0u, end = kept;
     if (un.has_sample) {
         FOR_BLOCKS(INIT_BLOCK)
-        uvec4 qb = texelFetch(list_samples_tb, int(s));
-        vec3 x = uintBitsToFloat(qb.xyz);
         vec3 ox = x - o;
         // Exact mode rejects a plane only beyond its rounding (1e-5 of
         // the distance in light radii), so that it never drops a light
@@ -259,7 +336,7 @@ void main() {
 #endif
         FOR_BLOCKS(ACC_BLOCK)
         for (uint k = begin; k < end; k++) {
-            uint pi = texelFetch(tile_pairs_tb, int(k)).x;
+            uint pi = kept_pairs[k];
             uvec4 ids = texelFetch(pairs_tb, int(4u * pi));
             uvec2 rmin = uvec2(ids.z & 0xffffu, ids.z >> 16);
             uvec2 rmax = uvec2(ids.w & 0xffffu, ids.w >> 16);
@@ -344,6 +421,10 @@ void main() {
     uint sum_tests = subgroupAdd(tests);
     uint sum_blocking = subgroupAdd(blocking);
     uint sum_unsure = subgroupAdd(unsure_bits);
+    uint sum_dropped = subgroupAdd(chunk_dropped);
+    if (subgroupElect() && sum_dropped != 0u) {
+        atomicAdd(counters[COUNTER_CLUSTER_CHUNK], sum_dropped);
+    }
     if (subgroupElect() && (sum_tests | sum_blocking | sum_unsure) != 0u) {
         atomicAdd(counters[COUNTER_TESTS], sum_tests);
         atomicAdd(counters[COUNTER_BLOCKING], sum_blocking);

@@ -19,6 +19,7 @@ struct OcclusionUnit {
     bool has_sample;
     bool first_of_texel; // the slot is the first of its texel's list
     uint face;
+    uint tile;         // face-major tile index (valid when the unit exists)
     uvec2 texel;
 };
 
@@ -32,6 +33,7 @@ OcclusionUnit occlusion_unit() {
     u.pair_end = 0u;
     u.slot = 0u;
     u.face = 0u;
+    u.tile = 0u;
     u.texel = uvec2(0u);
     if (unit >= pc.more.w) {
         return u;
@@ -47,6 +49,7 @@ OcclusionUnit occlusion_unit() {
         }
     }
     uint tile = lo_t;
+    u.tile = tile;
     u.face = tile / tiles_per_face;
     uint in_face = tile % tiles_per_face;
     uvec2 tile_xy = uvec2(in_face % pc.more.y, in_face / pc.more.y);

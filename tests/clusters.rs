@@ -5,7 +5,8 @@
 //! rules: boxes that straddle a caster's plane (contacts, steps), samples
 //! inside the light's bounding sphere, casters thinner than a texel, a
 //! light that intersects a closed mesh, directional and point lights. Each
-//! rule must have dropped pairs somewhere, or the test proves nothing.
+//! rule (per tile in binning, per chunk of 64 samples in soft occlusion)
+//! must have dropped pairs somewhere, or the test proves nothing.
 
 use alias_free_shadows::bench::{bench_light, load_scene};
 use alias_free_shadows::light::{Light, LightShape};
@@ -43,7 +44,7 @@ fn soft_lights(desc: &SceneDescription) -> Vec<(&'static str, Light)> {
 #[test]
 fn clusters_change_no_result() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
-    let (mut light_side, mut behind_closed, mut cases) = (0u64, 0u64, 0);
+    let (mut light_side, mut behind_closed, mut chunk, mut cases) = (0u64, 0u64, 0u64, 0);
     for spec in [
         "builtin:demo",
         "builtin:plane_sphere",
@@ -105,6 +106,15 @@ fn clusters_change_no_result() {
                     "{spec}, {name}, {mode:?}: masks differ"
                 );
                 assert_eq!(with.visibility, without.visibility);
+                assert_eq!(
+                    (
+                        without.stats.bins_dropped_light_side,
+                        without.stats.bins_dropped_behind_closed,
+                        without.stats.chunk_pairs_dropped
+                    ),
+                    (0, 0, 0),
+                    "off drops nothing"
+                );
                 let (a, b) = (
                     with.stats.bins_dropped_light_side as u64,
                     with.stats.bins_dropped_behind_closed as u64,
@@ -113,10 +123,12 @@ fn clusters_change_no_result() {
                 // outs, and depends on the order of a tile's pairs where a
                 // full mask stops early: printed, not compared.)
                 eprintln!(
-                    "{spec}, {name}, {mode:?}: tests {} -> {}; bins dropped {a} (light side) + {b} (behind closed)",
+                    "{spec}, {name}, {mode:?}: tests {} -> {}; bins dropped {a} (light side) + {b} (behind closed); chunk visits dropped {}",
                     without.stats.view_sample_triangle_tests,
                     with.stats.view_sample_triangle_tests,
+                    with.stats.chunk_pairs_dropped,
                 );
+                chunk += with.stats.chunk_pairs_dropped as u64;
                 light_side += a;
                 behind_closed += b;
                 cases += 1;
@@ -124,8 +136,11 @@ fn clusters_change_no_result() {
         }
     }
     eprintln!(
-        "{cases} cases; bins dropped: {light_side} light side, {behind_closed} behind closed"
+        "{cases} cases; bins dropped: {light_side} light side, {behind_closed} behind closed; chunk visits dropped: {chunk}"
     );
-    assert!(light_side > 0 && behind_closed > 0, "both rules exercised");
+    assert!(
+        light_side > 0 && behind_closed > 0 && chunk > 0,
+        "every rule exercised"
+    );
     engine.context().check_validation().unwrap();
 }

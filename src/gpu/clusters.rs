@@ -4,9 +4,13 @@
 //! boxes of the tiles it covers and drops it where it cannot block any of
 //! their samples (`clusters_common.glsl`: every sample on the light's side
 //! of its plane, or behind a closed caster), so that occlusion never visits
-//! the pair. The rules are occlusion's own per-sample early outs taken for a
-//! whole box with a margin far above their rounding: the masks stay
-//! bit-identical. CPU twin: [`crate::cpu::clusters`].
+//! the pair. Soft occlusion applies the same rules again to the box of each
+//! workgroup's 64 samples (and their texels to each pair's rectangle) and
+//! compacts the unit's pairs before its loop (`soft_occlusion.comp`,
+//! `keep_pairs`): on lavapipe every lane runs every iteration, so only a
+//! shorter loop saves time. The rules are occlusion's own per-sample early
+//! outs taken for a whole box with a margin far above their rounding: the
+//! masks stay bit-identical. CPU twin: [`crate::cpu::clusters`].
 
 use crate::gpu::dispatch::{groups, storage, RGBA32UI};
 use crate::gpu::light_frame::{LightFrame, Recording};

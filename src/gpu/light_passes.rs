@@ -170,7 +170,10 @@ impl LightPasses {
             }
             Some(sl) => {
                 let table = self.plane_lut.table();
-                self.soft_occlusion.record(r, sl, table, passes, counters)?;
+                let (lists, casters, bins) = passes;
+                let soft_inputs = (lists, casters, bins, &self.clusters);
+                self.soft_occlusion
+                    .record(r, sl, table, soft_inputs, counters)?;
                 self.resolve.record_soft(r, lists, &self.soft_occlusion)?;
             }
         }

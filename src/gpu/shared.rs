@@ -168,7 +168,10 @@ pub mod counter {
     pub const CLUSTER_LIGHT_SIDE: usize = 12;
     /// The same, because every sample lies behind a closed caster (soft).
     pub const CLUSTER_BEHIND_CLOSED: usize = 13;
-    pub const COUNT: usize = 14;
+    /// Soft occlusion: (pair, chunk of 64 samples) visits that the chunk's
+    /// own box or texels ruled out.
+    pub const CLUSTER_CHUNK: usize = 14;
+    pub const COUNT: usize = 15;
 }
 
 /// `LightPush`: push constants of every shadow pass of a light, hard and soft.

@@ -10,6 +10,7 @@
 //! mode and block count (`build.rs`). CPU twin:
 //! [`crate::cpu::soft_occlusion`].
 
+use crate::gpu::clusters::ClusterPass;
 use crate::gpu::dispatch::{groups, groups_2d, storage, RGBA32UI};
 use crate::gpu::light_frame::LightFrame;
 use crate::gpu::light_frame::Recording;
@@ -23,6 +24,16 @@ use crate::vulkan::{
     GrowBuffer,
 };
 use crate::Result;
+
+/// What soft occlusion reads of the passes before it: the texel lists, the
+/// casters, the tile bins and the view-sample clusters' tile boxes (a
+/// chunk of a tile's samples drops the pairs its own box rules out).
+pub type SoftInputs<'a> = (
+    &'a TexelListPass,
+    &'a CasterPass,
+    &'a TileBinPass,
+    &'a ClusterPass,
+);
 
 /// The most entries of the unsure list (32 B each, one storage binding):
 /// look-up mode runs the work units in ranges whose entries fit it.
@@ -70,7 +81,7 @@ impl SoftOcclusionPass {
             ctx.create_compute_pipeline(&ComputePipelineDesc {
                 name,
                 spirv,
-                bindings: &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb],
+                bindings: &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb, tb],
                 push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
                 specialization: &[chunk],
             })
@@ -162,7 +173,7 @@ impl SoftOcclusionPass {
         r: &mut Recording,
         sl: &SoftLight,
         table: Option<&Buffer>,
-        passes: (&TexelListPass, &CasterPass, &TileBinPass),
+        passes: SoftInputs,
         counters: &GrowBuffer,
     ) -> Result<()> {
         let blocks = sl.blocks();
@@ -189,7 +200,7 @@ impl SoftOcclusionPass {
         r: &mut Recording,
         sl: &SoftLight,
         table: Option<&Buffer>,
-        passes: (&TexelListPass, &CasterPass, &TileBinPass),
+        passes: SoftInputs,
         counters: &GrowBuffer,
     ) -> Result<()> {
         let blocks = sl.blocks();
@@ -294,7 +305,7 @@ impl SoftOcclusionPass {
         pipeline: &ComputePipeline,
         (start, len): (u32, u32),
         table: Option<&Buffer>,
-        passes: (&TexelListPass, &CasterPass, &TileBinPass),
+        passes: SoftInputs,
         counters: &GrowBuffer,
     ) -> Result<()> {
         // soft.x: exact mode's block; the look-up modes': the list's capacity
@@ -311,7 +322,7 @@ impl SoftOcclusionPass {
         pipeline: &ComputePipeline,
         block: u32,
         table: Option<&Buffer>,
-        passes: (&TexelListPass, &CasterPass, &TileBinPass),
+        passes: SoftInputs,
         counters: &GrowBuffer,
     ) -> Result<()> {
         let units = r.frame.units();
@@ -326,7 +337,7 @@ impl SoftOcclusionPass {
         pipeline: &ComputePipeline,
         (block, start, len): (u32, u32, u32),
         table: Option<&Buffer>,
-        (lists, casters, bins): (&TexelListPass, &CasterPass, &TileBinPass),
+        (lists, casters, bins, clusters): SoftInputs,
         counters: &GrowBuffer,
     ) -> Result<()> {
         r.cmd.barrier(Barrier::TransferToCompute);
@@ -350,6 +361,7 @@ impl SoftOcclusionPass {
                 Binding::uniform(&self.light_samples),
                 Binding::uniform_texel(table, RGBA32UI),
                 storage(&self.unsure_list),
+                Binding::uniform_texel(&clusters.boxes, RGBA32UI),
             ];
             let groups = groups_2d(len.max(1));
             rec.dispatch(pipeline, &bindings, bytemuck::bytes_of(&push), groups)?;

@@ -35,9 +35,13 @@ pub const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
 /// 128-sample blocks: each test may loop over every light sample the table
 /// leaves unsure (at most 128 and 4 word steps per block), so that
 /// `chunk · (1 + 132 · blocks)` stays below 65535 loop iterations.
-pub fn sure_pair_chunk(blocks: u32) -> (u32, u32) {
+pub const fn sure_pair_chunk(blocks: u32) -> (u32, u32) {
     (2, 65535 / (1 + 132 * blocks))
 }
+
+/// Soft occlusion compacts a unit's pairs into `MAX_KEPT` (512) slots of
+/// shared memory (soft_occlusion.comp): no chunk may be longer.
+const _: () = assert!(SOFT_PAIR_CHUNK.1 <= 512 && sure_pair_chunk(1).1 <= 512);
 
 /// The binning passes' pipelines and the per-tile lists they build.
 pub struct TileBinPass {
