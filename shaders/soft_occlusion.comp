@@ -296,8 +296,16 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped) {
             bool rect_misses = any(lessThan(tmax, rmin)) || any(greaterThan(tmin, rmax));
             keep = !rect_misses && cull_rule(plane, lo, hi) == CLUSTER_KEEP;
         }
+        // One shared atomic per subgroup (lavapipe serializes per-lane atomics).
+        uvec4 ballot = subgroupBallot(keep);
+        uint count = subgroupBallotBitCount(ballot);
+        uint first = 0u;
+        if (subgroupElect()) {
+            first = atomicAdd(kept_count, count);
+        }
+        first = subgroupBroadcastFirst(first);
         if (keep) {
-            kept_pairs[atomicAdd(kept_count, 1u)] = pi;
+            kept_pairs[first + subgroupBallotExclusiveBitCount(ballot)] = pi;
         } else {
             local_dropped++;
         }
