@@ -9,6 +9,9 @@
 #include "clusters_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 layout(constant_id = 1) const uint SCATTER = 0u;
+// 1 for soft shadows: the view-sample clusters' code, compiled out for hard
+// shadows (they get no boxes: gpu::clusters; lavapipe runs guarded code).
+layout(constant_id = 4) const uint CLUSTERS = 0u;
 
 layout(set = 0, binding = 0) readonly buffer Pairs { CasterFace pairs[]; };
 layout(set = 0, binding = 1) buffer Counters { uint counters[]; };
@@ -32,11 +35,17 @@ void main() {
     uvec2 t0 = rmin / TILE, t1 = rmax / TILE;
     bool edges = cf.e0.w != 0.0;
     uint base = cf.ids.y * pc.more.z;
-    uvec4 t0v = texelFetch(triangles_tb, int(3u * cf.ids.x));
-    vec3 a = uintBitsToFloat(t0v.xyz);
-    vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * cf.ids.x + 1u)).xyz);
-    vec3 c = uintBitsToFloat(texelFetch(triangles_tb, int(3u * cf.ids.x + 2u)).xyz);
-    ClusterPlane plane = cluster_plane(a, b, c, (t0v.w & TRIANGLE_CLOSED) != 0u);
+    // Boxes exist for soft shadows only (gpu::clusters): hard shadows skip
+    // the plane, and every tile's box is invalid.
+    ClusterPlane plane;
+    plane.n = vec3(0.0);
+    if (CLUSTERS != 0u) {
+        uvec4 t0v = texelFetch(triangles_tb, int(3u * cf.ids.x));
+        vec3 a = uintBitsToFloat(t0v.xyz);
+        vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * cf.ids.x + 1u)).xyz);
+        vec3 c = uintBitsToFloat(texelFetch(triangles_tb, int(3u * cf.ids.x + 2u)).xyz);
+        plane = cluster_plane(a, b, c, (t0v.w & TRIANGLE_CLOSED) != 0u);
+    }
     uint light_side = 0u, behind_closed = 0u;
     for (uint ty = t0.y; ty <= t1.y; ty++) {
         for (uint tx = t0.x; tx <= t1.x; tx++) {
@@ -50,8 +59,8 @@ void main() {
             if (texelFetch(tile_max_len_tb, int(tile)).x == 0u) {
                 continue; // no view sample in this tile: nothing to shadow
             }
-            vec4 box_lo = uintBitsToFloat(texelFetch(boxes_tb, int(2u * tile)));
-            if (box_lo.w != 0.0) {
+            vec4 box_lo = CLUSTERS != 0u ? uintBitsToFloat(texelFetch(boxes_tb, int(2u * tile))) : vec4(0.0);
+            if (CLUSTERS != 0u && box_lo.w != 0.0) {
                 vec3 box_hi = uintBitsToFloat(texelFetch(boxes_tb, int(2u * tile + 1u)).xyz);
                 uint rule = cull_rule(plane, box_lo.xyz, box_hi);
                 light_side += rule == CLUSTER_LIGHT_SIDE ? 1u : 0u;

@@ -58,8 +58,9 @@ fn clusters_change_no_result() {
         let oracle = Oracle::new(&desc.scene.triangles(), eye);
         let view = engine_view_samples(&oracle, &desc);
 
-        // Hard shadows: a point light at the bench light's centre, and a
-        // directional light.
+        // Hard shadows (which get no boxes: gpu::clusters) stay the same
+        // too: a point light at the bench light's centre, and a directional
+        // light.
         let bench = bench_light(&desc, 1).unwrap();
         let centre = bench.center().unwrap();
         let (lo, hi) = desc.scene.bounds().unwrap();

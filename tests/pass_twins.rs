@@ -154,6 +154,7 @@ fn check_hard_passes(
 
 /// The view-sample boxes and tile bins of the last run against their
 /// twins (fed the GPU's lists and pairs); returns (pairs, binned pairs).
+/// Hard shadows (`light` not a sphere) get no boxes.
 fn check_bins(
     ctx: &GpuContext,
     pipeline: &ShadowPipeline,
@@ -162,6 +163,7 @@ fn check_bins(
     tpr: u32,
     light: ClusterLight,
 ) -> (usize, usize) {
+    let soft = matches!(light, ClusterLight::Sphere(..));
     let passes = pipeline.passes();
     let tiles = faces * (tpr * tpr) as usize;
     let texels = tiles * 64;
@@ -171,7 +173,10 @@ fn check_bins(
     let list: Vec<[f32; 4]> = read(ctx, &passes.texel_lists.list_samples, listed);
     let positions: Vec<Vec3> = list.iter().map(|q| Vec3::new(q[0], q[1], q[2])).collect();
     let tile_offsets: Vec<u32> = (0..=tiles).map(|t| offsets[t * 64]).collect();
-    let boxes = tile_boxes(&tile_offsets, &positions);
+    let boxes = match soft {
+        true => tile_boxes(&tile_offsets, &positions),
+        false => vec![None; tiles],
+    };
     let gpu_boxes: Vec<[f32; 4]> = read(ctx, &passes.clusters.boxes, 2 * tiles);
     for (t, b) in boxes.iter().enumerate() {
         let (lo, hi) = (gpu_boxes[2 * t], gpu_boxes[2 * t + 1]);

@@ -1,7 +1,9 @@
 //! CPU twin of the view-sample clusters (`clusters_bounds.comp`,
 //! `clusters_common.glsl`): per tile, the box of its listed samples, and
 //! the rules by which tile binning drops a caster for a whole box. Same f32
-//! arithmetic as the shaders.
+//! arithmetic as the shaders. The GPU builds boxes for soft shadows only
+//! (for hard shadows they did not pay, `gpu::clusters`); the rules hold for
+//! point and directional lights as well.
 
 use glam::Vec3;
 

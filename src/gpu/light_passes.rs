@@ -138,8 +138,8 @@ impl LightPasses {
         // per-light-texel lists of view samples (count, scan, scatter).
         self.light_view.record(r)?;
         self.texel_lists.record(r, &self.light_view.faces)?;
-        // Sintorn et al. 2014: each tile's view samples as one box.
-        self.clusters.record(r, &self.texel_lists)?;
+        // Sintorn et al. 2014: each tile's view samples as one box (soft).
+        self.clusters.record(r, &self.texel_lists, soft.is_some())?;
         // §3.3, §4.1: each caster's planes and its projection or influence
         // region; §3.2: conservatively rasterized, binned per tile, less the
         // tiles whose box it cannot shadow.

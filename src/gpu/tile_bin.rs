@@ -45,8 +45,10 @@ const _: () = assert!(SOFT_PAIR_CHUNK.1 <= 512 && sure_pair_chunk(1).1 <= 512);
 
 /// The binning passes' pipelines and the per-tile lists they build.
 pub struct TileBinPass {
-    count: ComputePipeline,
-    scatter: ComputePipeline,
+    /// Count and scatter, indexed by whether the run is soft (specialization
+    /// constant 4, `CLUSTERS`: the view-sample clusters' code compiled in).
+    count: [ComputePipeline; 2],
+    scatter: [ComputePipeline; 2],
     /// Hard shadows' work units: chunks of the tile's longest texel list.
     units_hard: ComputePipeline,
     /// Soft shadows' work units: one lane per listed sample of the tile.
@@ -89,18 +91,34 @@ impl TileBinPass {
             })
         };
         Ok(TileBinPass {
-            count: make(
-                "tile_bin_count",
-                shaders::TILE_BIN,
-                &bin_bindings,
-                &[(1, 0)],
-            )?,
-            scatter: make(
-                "tile_bin_scatter",
-                shaders::TILE_BIN,
-                &bin_bindings,
-                &[(1, 1)],
-            )?,
+            count: [
+                make(
+                    "tile_bin_count",
+                    shaders::TILE_BIN,
+                    &bin_bindings,
+                    &[(1, 0), (4, 0)],
+                )?,
+                make(
+                    "tile_bin_count_soft",
+                    shaders::TILE_BIN,
+                    &bin_bindings,
+                    &[(1, 0), (4, 1)],
+                )?,
+            ],
+            scatter: [
+                make(
+                    "tile_bin_scatter",
+                    shaders::TILE_BIN,
+                    &bin_bindings,
+                    &[(1, 1), (4, 0)],
+                )?,
+                make(
+                    "tile_bin_scatter_soft",
+                    shaders::TILE_BIN,
+                    &bin_bindings,
+                    &[(1, 1), (4, 1)],
+                )?,
+            ],
             units_hard: make("tile_bin_units", shaders::TILE_BIN_UNITS, &[sb; 3], &[])?,
             units_soft: make(
                 "tile_bin_units_soft",
@@ -166,7 +184,8 @@ impl TileBinPass {
                 Binding::uniform_texel(&clusters.boxes, RGBA32UI),
                 Binding::uniform_texel(triangles, RGBA32UI),
             ];
-            rec.dispatch(&self.count, &bindings, pc, groups(pair_capacity))?;
+            let count = &self.count[usize::from(soft.is_some())];
+            rec.dispatch(count, &bindings, pc, groups(pair_capacity))?;
             rec.barrier(Barrier::ComputeToCompute);
             let (units, per_tile) = match soft {
                 None => (&self.units_hard, &lists.tile_max_len),
@@ -218,6 +237,7 @@ impl TileBinPass {
         r.cmd.fill_buffer(self.tile_counts.slice(), 0)?;
         r.cmd.barrier(Barrier::TransferToCompute);
         let pair_capacity = r.frame.pair_capacity;
+        let soft = r.frame.push.soft[1] != 0;
         r.pass("tile_bin_scatter", |rec, pc| {
             let bindings = [
                 storage(&casters.pairs),
@@ -229,7 +249,8 @@ impl TileBinPass {
                 Binding::uniform_texel(&clusters.boxes, RGBA32UI),
                 Binding::uniform_texel(triangles, RGBA32UI),
             ];
-            rec.dispatch(&self.scatter, &bindings, pc, groups(pair_capacity))?;
+            let scatter = &self.scatter[usize::from(soft)];
+            rec.dispatch(scatter, &bindings, pc, groups(pair_capacity))?;
             rec.barrier(Barrier::ComputeToCompute);
             Ok(())
         })
