@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use alias_free_shadows::light::LightShape;
 use alias_free_shadows::scene::builtin::builtin;
 use alias_free_shadows::scene::gltf_load::{load_gltf, load_gltf_slice};
 use alias_free_shadows::scene::gltf_write::write_glb;
@@ -523,6 +524,75 @@ fn perspective_cameras_are_read_and_orthographic_ones_skipped() {
     assert_eq!((c2.width, c2.height), (512, 512));
     assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
     assert!(s.warnings[0].contains("orthographic"), "{:?}", s.warnings);
+}
+
+/// `KHR_lights_punctual`: point lights at their node's origin,
+/// directional ones along its -z, spot lights as point lights with a
+/// warning; the colour kept; a scene loaded from the file uses them instead
+/// of the default light.
+#[test]
+fn punctual_lights_are_read() {
+    let mut d = Doc::new();
+    d.root["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+    d.root["extensions"] = json!({"KHR_lights_punctual": {"lights": [
+        {"type": "point", "color": [1.0, 0.5, 0.25], "intensity": 40.0},
+        {"type": "directional"},
+        {"type": "spot", "spot": {"outerConeAngle": 0.5}},
+    ]}});
+    // -90 degrees about x turns the light's -z to -y (straight down).
+    d.nodes(
+        json!([
+            {"children": [1], "translation": [0., 1., 0.]},
+            {"extensions": {"KHR_lights_punctual": {"light": 0}}, "translation": [1., 2., 3.]},
+            {"extensions": {"KHR_lights_punctual": {"light": 1}}, "rotation": [-S, 0., 0., S]},
+            {"extensions": {"KHR_lights_punctual": {"light": 2}}, "translation": [0., 5., 0.]},
+            {"extensions": {"KHR_lights_punctual": {"light": 7}}},
+        ]),
+        &[0, 2, 3, 4],
+    );
+    let s = load_ok(&d.gltf());
+    assert_eq!(s.lights.len(), 3, "{:?}", s.lights);
+    match s.lights[0].shape {
+        LightShape::Point { position } => assert_close(position, [1., 3., 3.], 1e-12),
+        ref other => panic!("{other:?}"),
+    }
+    assert_eq!(s.lights[0].color, [1.0, 0.5, 0.25]);
+    match s.lights[1].shape {
+        LightShape::Directional { direction } => assert_close(direction, [0., -1., 0.], 1e-6),
+        ref other => panic!("{other:?}"),
+    }
+    match s.lights[2].shape {
+        LightShape::Point { position } => assert_close(position, [0., 5., 0.], 1e-12),
+        ref other => panic!("{other:?}"),
+    }
+    let warned = |needle: &str| s.warnings.iter().any(|w| w.contains(needle));
+    assert!(warned("is used as a point light"), "{:?}", s.warnings);
+    assert!(warned("light 7 does not exist"), "{:?}", s.warnings);
+
+    // Through the scene loader: the file's lights, not the default one.
+    let dir = tempfile::tempdir().unwrap();
+    let mut d2 = Doc::new();
+    let pos = d2.positions(&[[0., 0., 0.], [1., 0., 0.], [0., 0., 1.]]);
+    d2.root["meshes"] = json!([{"primitives": [{"attributes": {"POSITION": pos}}]}]);
+    d2.root["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+    d2.root["extensions"] = json!({"KHR_lights_punctual": {"lights": [{"type": "point"}]}});
+    d2.nodes(
+        json!([
+            {"mesh": 0},
+            {"extensions": {"KHR_lights_punctual": {"light": 0}}, "translation": [0.25, 4., 0.25]},
+        ]),
+        &[0, 1],
+    );
+    let path = dir.path().join("lit.gltf");
+    std::fs::write(&path, d2.gltf()).unwrap();
+    let desc = alias_free_shadows::scene::file::load(path.to_str().unwrap()).unwrap();
+    assert_eq!(desc.lights.len(), 1);
+    assert_eq!(
+        desc.lights[0].shape,
+        LightShape::Point {
+            position: DVec3::new(0.25, 4., 0.25)
+        }
+    );
 }
 
 #[test]

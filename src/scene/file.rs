@@ -417,8 +417,9 @@ fn toml_message(e: &toml::de::Error) -> String {
 }
 
 /// Loads a scene argument: a TOML scene file, a `.gltf`/`.glb` file, or
-/// `builtin:NAME`. Scenes without a camera or lights of their own get a
-/// framing camera and a point light above ([`default_view`]).
+/// `builtin:NAME`. Scenes without a camera or lights of their own (glTF
+/// cameras, `KHR_lights_punctual`) get a framing camera and a point light
+/// above ([`default_view`]).
 pub fn load(spec: &str) -> Result<SceneDescription> {
     let path = PathBuf::from(spec);
     let ext = path
@@ -472,6 +473,18 @@ fn load_geometry(spec: &str, base: &Path) -> Result<SceneDescription> {
     }
     let (camera, light) = default_view(&scene);
     let camera = scene.cameras.first().copied().unwrap_or(camera);
+    // The file's own lights (KHR_lights_punctual), else the default one.
+    let lights = match scene.lights.is_empty() {
+        true => vec![light],
+        false => scene.lights.clone(),
+    };
+    for (i, l) in lights.iter().enumerate() {
+        l.validate_relative_to(camera.eye)
+            .map_err(|e| Error::Gltf {
+                path: path.clone(),
+                message: format!("light {i}: {}", strip_prefix(&e)),
+            })?;
+    }
     // Vertices finite in f64 (the loader checks that) can still be out of
     // the f32 range of the GPU passes, relative to the camera.
     scene.validate(camera.eye).map_err(|e| Error::Gltf {
@@ -482,7 +495,7 @@ fn load_geometry(spec: &str, base: &Path) -> Result<SceneDescription> {
         name: path.display().to_string(),
         scene,
         camera,
-        lights: vec![light],
+        lights,
         shadows: ShadowSettings::default(),
     })
 }

@@ -27,6 +27,7 @@ use json::accessor::{ComponentType, Type};
 use json::validation::Checked;
 
 use super::{is_closed, AlphaMode, Camera, Material, Mesh, Scene, Texture};
+use crate::light::{Distribution, Light, LightShape};
 use crate::{Error, Result};
 
 /// Accessors without a buffer view are zero-filled; this bounds their size
@@ -694,6 +695,12 @@ impl<'a> Loader<'a> {
                     scene.cameras.push(cam);
                 }
             }
+            let light = node.extensions.as_ref();
+            if let Some(l) = light.and_then(|e| e.khr_lights_punctual.as_ref()) {
+                if let Some(light) = self.load_light(l.light.value(), &world, &label) {
+                    scene.lights.push(light);
+                }
+            }
             for c in node.children.iter().flatten().rev() {
                 stack.push((c.value(), world));
             }
@@ -949,6 +956,52 @@ impl<'a> Loader<'a> {
             return None;
         }
         Some(camera)
+    }
+
+    /// A `KHR_lights_punctual` light placed by the node's `world` transform:
+    /// point at its origin, directional along its -z; a spot light is a
+    /// point light (its cone is not applied: a warning says so). The colour
+    /// is kept; the photometric intensity is not (pictures are normalized,
+    /// visibility does not depend on it).
+    fn load_light(&mut self, li: usize, world: &DMat4, label: &str) -> Option<Light> {
+        use json::extensions::scene::khr_lights_punctual::Type as LightType;
+        let lights = self.root.extensions.as_ref()?.khr_lights_punctual.as_ref();
+        let Some(l) = lights.and_then(|ls| ls.lights.get(li)) else {
+            self.warn(format!("{label}: light {li} does not exist; skipped"));
+            return None;
+        };
+        let name = l.name.clone().unwrap_or_else(|| format!("light#{li}"));
+        let position = world.w_axis.truncate();
+        let direction = world.transform_vector3(DVec3::NEG_Z).normalize_or_zero();
+        let shape = match l.type_ {
+            Checked::Valid(LightType::Point) => LightShape::Point { position },
+            Checked::Valid(LightType::Spot) => {
+                self.warn(format!(
+                    "spot light {name:?} ({label}) is used as a point light: its cone is not applied"
+                ));
+                LightShape::Point { position }
+            }
+            Checked::Valid(LightType::Directional) if direction != DVec3::ZERO => {
+                LightShape::Directional { direction }
+            }
+            _ => {
+                self.warn(format!("light {name:?} ({label}) is malformed; skipped"));
+                return None;
+            }
+        };
+        let color = l.color;
+        if !position.is_finite() || color.iter().any(|c| !c.is_finite() || *c < 0.0) {
+            self.warn(format!("light {name:?} ({label}) is not finite; skipped"));
+            return None;
+        }
+        Some(Light {
+            shape,
+            samples: 1,
+            distribution: Distribution::Poisson,
+            seed: 7,
+            color,
+            intensity: 1.0,
+        })
     }
 
     fn load_materials(&mut self) -> Vec<Material> {

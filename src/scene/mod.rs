@@ -242,12 +242,16 @@ pub fn within_range(v: DVec3) -> bool {
     v.is_finite() && v.abs().max_element() <= MAX_RELATIVE_COORDINATE
 }
 
-/// A loaded scene: world-space meshes, materials and any cameras the source defined.
+/// A loaded scene: world-space meshes, materials and any cameras and lights
+/// the source defined.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
     pub meshes: Vec<Mesh>,
     pub materials: Vec<Material>,
     pub cameras: Vec<Camera>,
+    /// Lights the source defined (glTF `KHR_lights_punctual`: point and
+    /// directional; spot lights as point lights).
+    pub lights: Vec<crate::light::Light>,
     /// Non-fatal problems met while loading (also logged with `log::warn!`),
     /// for example a missing texture that shadows do not need.
     pub warnings: Vec<String>,
