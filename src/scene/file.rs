@@ -478,19 +478,20 @@ fn load_geometry(spec: &str, base: &Path) -> Result<SceneDescription> {
         true => vec![light],
         false => scene.lights.clone(),
     };
-    for (i, l) in lights.iter().enumerate() {
-        l.validate_relative_to(camera.eye)
-            .map_err(|e| Error::Gltf {
-                path: path.clone(),
-                message: format!("light {i}: {}", strip_prefix(&e)),
-            })?;
-    }
     // Vertices finite in f64 (the loader checks that) can still be out of
     // the f32 range of the GPU passes, relative to the camera.
     scene.validate(camera.eye).map_err(|e| Error::Gltf {
         path: path.clone(),
         message: strip_prefix(&e),
     })?;
+    // Then the file's own lights, so that a bad vertex is named first.
+    for (i, l) in scene.lights.iter().enumerate() {
+        l.validate_relative_to(camera.eye)
+            .map_err(|e| Error::Gltf {
+                path: path.clone(),
+                message: format!("light {i}: {}", strip_prefix(&e)),
+            })?;
+    }
     Ok(SceneDescription {
         name: path.display().to_string(),
         scene,
