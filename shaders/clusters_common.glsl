@@ -58,6 +58,16 @@ ClusterPlane cluster_plane(vec3 a, vec3 b, vec3 c, bool closed) {
     return cp;
 }
 
+// The ClusterPlane of triangle i of `triangles` (GpuTriangle: 3 texels,
+// camera-relative vertices, TRIANGLE_CLOSED in the first texel's w).
+ClusterPlane triangle_cluster_plane(usamplerBuffer triangles, uint i) {
+    uvec4 t0 = texelFetch(triangles, int(3u * i));
+    vec3 a = uintBitsToFloat(t0.xyz);
+    vec3 b = uintBitsToFloat(texelFetch(triangles, int(3u * i + 1u)).xyz);
+    vec3 c = uintBitsToFloat(texelFetch(triangles, int(3u * i + 2u)).xyz);
+    return cluster_plane(a, b, c, (t0.w & TRIANGLE_CLOSED) != 0u);
+}
+
 // Which rule (if any) drops the caster for every sample of the box
 // [lo, hi]: every sample on the light's side of its plane (its segments to
 // the light never cross it), or, soft shadows, behind a closed caster

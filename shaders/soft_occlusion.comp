@@ -288,11 +288,7 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped) {
             uvec4 ids = texelFetch(pairs_tb, int(4u * pi));
             uvec2 rmin = uvec2(ids.z & 0xffffu, ids.z >> 16);
             uvec2 rmax = uvec2(ids.w & 0xffffu, ids.w >> 16);
-            uvec4 t0 = texelFetch(triangles_tb, int(3u * ids.x));
-            vec3 a = uintBitsToFloat(t0.xyz);
-            vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 1u)).xyz);
-            vec3 c = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 2u)).xyz);
-            ClusterPlane plane = cluster_plane(a, b, c, (t0.w & TRIANGLE_CLOSED) != 0u);
+            ClusterPlane plane = triangle_cluster_plane(triangles_tb, ids.x);
             bool rect_misses = any(lessThan(tmax, rmin)) || any(greaterThan(tmin, rmax));
             keep = !rect_misses && cull_rule(plane, lo, hi) == CLUSTER_KEEP;
         }

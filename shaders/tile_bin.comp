@@ -40,11 +40,7 @@ void main() {
     ClusterPlane plane;
     plane.n = vec3(0.0);
     if (CLUSTERS != 0u) {
-        uvec4 t0v = texelFetch(triangles_tb, int(3u * cf.ids.x));
-        vec3 a = uintBitsToFloat(t0v.xyz);
-        vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * cf.ids.x + 1u)).xyz);
-        vec3 c = uintBitsToFloat(texelFetch(triangles_tb, int(3u * cf.ids.x + 2u)).xyz);
-        plane = cluster_plane(a, b, c, (t0v.w & TRIANGLE_CLOSED) != 0u);
+        plane = triangle_cluster_plane(triangles_tb, cf.ids.x);
     }
     uint light_side = 0u, behind_closed = 0u;
     for (uint ty = t0.y; ty <= t1.y; ty++) {

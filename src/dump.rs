@@ -196,6 +196,23 @@ fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
 }
 
 impl Dump {
+    /// Whether `name` is one of the files [`Dump::write`] writes
+    /// (`image.png` included).
+    pub fn is_file_name(name: &str) -> bool {
+        [
+            "position.exr",
+            "normal.exr",
+            "scene.json",
+            "stats.json",
+            "image.png",
+        ]
+        .contains(&name)
+            || name
+                .strip_prefix("visibility_")
+                .and_then(|n| n.strip_suffix(".exr"))
+                .is_some_and(|k| k.parse::<usize>().is_ok())
+    }
+
     /// Writes the dump into `dir` (created if needed), with `image` as
     /// `image.png`. Files are written under temporary names and renamed at
     /// the end, so a failed run never leaves a dump that looks complete.

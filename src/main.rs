@@ -229,17 +229,15 @@ fn check_output_paths(args: &RenderArgs) -> Result<()> {
         _ => false,
     };
     let name = out.file_name().map(|n| n.to_string_lossy().into_owned());
-    let dump_file = |n: &str| {
-        ["position.exr", "normal.exr", "scene.json", "stats.json"].contains(&n)
-            || (n.starts_with("visibility_") && n.ends_with(".exr"))
-    };
     match name {
-        Some(n) if same_dir && dump_file(&n) => Err(Error::InvalidInput(format!(
-            "-o {} would overwrite the dump's own {n} in --dump {}: choose another name \
+        Some(n) if same_dir && n != "image.png" && Dump::is_file_name(&n) => {
+            Err(Error::InvalidInput(format!(
+                "-o {} would overwrite the dump's own {n} in --dump {}: choose another name \
              (the dump holds the image as image.png)",
-            out.display(),
-            dump.display()
-        ))),
+                out.display(),
+                dump.display()
+            )))
+        }
         _ => Ok(()),
     }
 }

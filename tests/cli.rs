@@ -134,6 +134,27 @@ fn f32_bytes(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }
 
+/// A one-light dump in `dir` holds every file and nothing under a
+/// temporary name.
+fn assert_complete_dump(dir: &Path) {
+    for f in [
+        "position.exr",
+        "normal.exr",
+        "visibility_0.exr",
+        "scene.json",
+        "stats.json",
+        "image.png",
+    ] {
+        assert!(dir.join(f).is_file(), "dump lacks {f}");
+    }
+    let left: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(".partial"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
 #[test]
 fn render_writes_image_and_dump_and_compare_reads_it() {
     let dir = tempfile::tempdir().unwrap();
@@ -157,28 +178,7 @@ fn render_writes_image_and_dump_and_compare_reads_it() {
     assert!(o.status.success(), "{}", text(&o));
     let img = image::open(d.join("a.png")).unwrap();
     assert_eq!((img.width(), img.height()), (48, 32));
-    for f in [
-        "position.exr",
-        "normal.exr",
-        "visibility_0.exr",
-        "scene.json",
-        "stats.json",
-        "image.png",
-    ] {
-        assert!(d.join("dump_a").join(f).is_file(), "dump lacks {f}");
-    }
-    // Nothing left under a temporary name.
-    let partial = std::fs::read_dir(d.join("dump_a"))
-        .unwrap()
-        .filter(|e| {
-            e.as_ref()
-                .unwrap()
-                .file_name()
-                .to_string_lossy()
-                .starts_with(".partial")
-        })
-        .count();
-    assert_eq!(partial, 0);
+    assert_complete_dump(&d.join("dump_a"));
 
     let o = afs(&["compare", "dump_a", "dump_a", "--json"], d);
     assert!(o.status.success(), "{}", text(&o));
@@ -902,20 +902,7 @@ fn output_inside_the_dump_folder() {
     assert!(o.status.success(), "{}", text(&o));
     let img = image::open(d.join("dump/image.png")).unwrap();
     assert_eq!((img.width(), img.height()), (24, 16));
-    for f in [
-        "position.exr",
-        "visibility_0.exr",
-        "scene.json",
-        "stats.json",
-    ] {
-        assert!(d.join("dump").join(f).is_file(), "dump lacks {f}");
-    }
-    let left: Vec<String> = std::fs::read_dir(d.join("dump"))
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|n| n.starts_with(".partial"))
-        .collect();
-    assert!(left.is_empty(), "{left:?}");
+    assert_complete_dump(&d.join("dump"));
     // The same through another spelling of the folder.
     let o = afs(&args(&["--dump", "./dump2", "-o", "dump2/./image.png"]), d);
     assert!(o.status.success(), "{}", text(&o));

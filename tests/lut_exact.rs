@@ -18,6 +18,11 @@ use common::engine_view_samples;
 
 const SIZE: u32 = 40;
 
+/// Mask words that differ between two runs of the same samples.
+fn words_differ(a: &[u32], b: &[u32]) -> usize {
+    a.iter().zip(b).filter(|(x, y)| x != y).count()
+}
+
 fn specs() -> Vec<String> {
     let mut out: Vec<String> = alias_free_shadows::scene::builtin::NAMES
         .iter()
@@ -110,12 +115,7 @@ fn look_up_mode_masks_equal_exact_mode() {
                 let lut = run(&mut engine, SoftMode::Lut);
                 let exact = run(&mut engine, SoftMode::Exact);
                 assert_eq!(lut.visible.len(), exact.visible.len());
-                let differ = lut
-                    .visible
-                    .iter()
-                    .zip(&exact.visible)
-                    .filter(|(a, b)| a != b)
-                    .count();
+                let differ = words_differ(&lut.visible, &exact.visible);
                 let s = lut.stats.soft.as_ref().unwrap();
                 eprintln!(
                     "{spec} {} {samples}: {} words, {differ} differ; {} unsure bits ({:.2e} of the tested bits)",
@@ -241,12 +241,7 @@ fn unsure_list_ranges_equal_one_range() {
             one.visible.iter().map(|w| w.count_ones()).sum(),
             ranged.visible.iter().map(|w| w.count_ones()).sum(),
         );
-        let differ = one
-            .visible
-            .iter()
-            .zip(&ranged.visible)
-            .filter(|(x, y)| x != y)
-            .count();
+        let differ = words_differ(&one.visible, &ranged.visible);
         assert!(
             differ == 0,
             "list limit {limit}: {differ} words differ, visible bits {a} in one range, {b} in ranges"
