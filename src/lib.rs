@@ -33,3 +33,9 @@ pub mod stats;
 pub mod vulkan;
 
 pub use error::{Error, Result};
+
+/// The `ash` this crate is built with, for [`vulkan::ExternalDevice`].
+pub use ash;
+/// The `gpu-allocator` this crate is built with, for a shared allocator in
+/// [`vulkan::ExternalDevice`].
+pub use gpu_allocator;

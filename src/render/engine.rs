@@ -17,7 +17,7 @@ use crate::oracle::ViewSample;
 use crate::scene::file::ShadowSettings;
 use crate::scene::Scene;
 use crate::stats::ShadowStats;
-use crate::vulkan::{ContextOptions, GpuContext, GrowBuffer};
+use crate::vulkan::{ContextOptions, ExternalDevice, GpuContext, GrowBuffer};
 use crate::{Error, Result};
 
 /// The engine: a Vulkan context and the compiled passes, reused frame after
@@ -60,7 +60,18 @@ impl Engine {
     /// Creates the Vulkan context (device from `options`, `AFS_DEVICE`, or
     /// the default choice) and compiles the passes.
     pub fn new(options: &ContextOptions) -> Result<Self> {
-        let ctx = GpuContext::new(options)?;
+        Self::with_context(GpuContext::new(options)?)
+    }
+
+    /// An engine on a renderer's own Vulkan device: create the device with
+    /// [`DeviceRequirements`](crate::vulkan::DeviceRequirements) merged in,
+    /// then hand it over. Of `options` only the timeout applies. The engine
+    /// destroys only what it made; drop it before the device.
+    pub fn from_external(external: ExternalDevice, options: &ContextOptions) -> Result<Self> {
+        Self::with_context(GpuContext::from_external(external, options)?)
+    }
+
+    fn with_context(ctx: GpuContext) -> Result<Self> {
         let shadows = ShadowPipeline::new(&ctx)?;
         let view = ViewSamplePass::new(&ctx)?;
         Ok(Engine {

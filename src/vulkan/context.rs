@@ -8,7 +8,7 @@ use ash::vk;
 
 use super::buffer::{BufferDesc, GrowBuffer, Staging, StagingGuard, MAX_KEPT_STAGING};
 use super::commands::CommandRecorder;
-use super::device::{Allocations, Device, DeviceInfo};
+use super::device::{Allocations, Device, DeviceInfo, ExternalDevice};
 use super::instance::{lock, Instance, ValidationLevel, ValidationMessages, CREATION_LOCK};
 use crate::{Error, Result};
 
@@ -43,6 +43,21 @@ impl ContextOptions {
     }
 }
 
+/// `options.timeout`, else env `AFS_GPU_TIMEOUT_S`, else 300 s.
+fn timeout(options: &ContextOptions) -> Result<Duration> {
+    Ok(match options.timeout {
+        Some(t) => t,
+        None => match std::env::var("AFS_GPU_TIMEOUT_S") {
+            Ok(s) => Duration::from_secs_f64(s.trim().parse::<f64>().map_err(|_| {
+                Error::InvalidInput(format!(
+                    "AFS_GPU_TIMEOUT_S=\"{s}\" is not a number of seconds"
+                ))
+            })?),
+            Err(_) => Duration::from_secs(300),
+        },
+    })
+}
+
 /// A submission that did not finish in time. Kept, not destroyed (the GPU
 /// may still use it), until the context drops after the device is idle.
 struct Pending {
@@ -71,23 +86,26 @@ impl GpuContext {
     /// Creates instance, device and allocator.
     pub fn new(options: &ContextOptions) -> Result<Self> {
         let validation = options.validation.unwrap_or_else(ValidationLevel::from_env);
-        let timeout = match options.timeout {
-            Some(t) => t,
-            None => match std::env::var("AFS_GPU_TIMEOUT_S") {
-                Ok(s) => Duration::from_secs_f64(s.trim().parse::<f64>().map_err(|_| {
-                    Error::InvalidInput(format!(
-                        "AFS_GPU_TIMEOUT_S=\"{s}\" is not a number of seconds"
-                    ))
-                })?),
-                Err(_) => Duration::from_secs(300),
-            },
-        };
+        let timeout = timeout(options)?;
         let device = {
             let _guard = lock(&CREATION_LOCK);
             let instance = Arc::new(Instance::new(validation)?);
             Device::new(instance, options.device.as_deref())?
         };
-        let ctx = GpuContext {
+        let ctx = Self::with_device(device, timeout);
+        ctx.check_validation()?;
+        Ok(ctx)
+    }
+
+    /// A context on a caller's device ([`ExternalDevice`]); of `options`
+    /// only the timeout applies (validation is the caller's instance's).
+    pub fn from_external(external: ExternalDevice, options: &ContextOptions) -> Result<Self> {
+        let timeout = timeout(options)?;
+        Ok(Self::with_device(Device::from_external(external)?, timeout))
+    }
+
+    fn with_device(device: Arc<Device>, timeout: Duration) -> Self {
+        GpuContext {
             device,
             timeout,
             pending: Mutex::new(Vec::new()),
@@ -96,9 +114,7 @@ impl GpuContext {
                 "read-back staging",
                 0,
             ))),
-        };
-        ctx.check_validation()?;
-        Ok(ctx)
+        }
     }
 
     /// [`GpuContext::new`] with every option from the environment.

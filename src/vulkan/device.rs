@@ -531,7 +531,11 @@ pub struct Device {
     queue: Mutex<vk::Queue>,
     queue_family: u32,
     info: DeviceInfo,
-    allocator: ManuallyDrop<Mutex<Allocator>>,
+    /// Made for this device, or the caller's (shared with its renderer);
+    /// ours is dropped before the device is destroyed.
+    allocator: ManuallyDrop<Arc<Mutex<Allocator>>>,
+    /// Whether the device is ours to destroy (false: the caller's).
+    owned: bool,
     /// Buffers and images created so far, and their bytes.
     created: [AtomicU64; 3],
     // Declared last: dropped after the device.
@@ -552,13 +556,10 @@ impl Device {
             .expect("usable device has a queue");
 
         // Only what the passes may use and the device has.
-        let features = vk::PhysicalDeviceFeatures::default()
-            .shader_int64(info.shader_int64)
-            .shader_storage_image_read_without_format(info.storage_image_read_without_format)
-            .shader_storage_image_write_without_format(info.storage_image_write_without_format);
-        let mut features12 = vk::PhysicalDeviceVulkan12Features::default()
-            .shader_buffer_int64_atomics(info.shader_buffer_int64_atomics)
-            .shader_shared_int64_atomics(info.shader_shared_int64_atomics);
+        let requirements = DeviceRequirements::from_info(&info);
+        let mut features = vk::PhysicalDeviceFeatures::default();
+        let mut features12 = vk::PhysicalDeviceVulkan12Features::default();
+        requirements.enable(&mut features, &mut features12);
         let priorities = [1.0f32];
         let queue_infos = [vk::DeviceQueueCreateInfo::default()
             .queue_family_index(queue_family)
@@ -571,19 +572,11 @@ impl Device {
             .map_err(|e| Error::Vulkan(format!("vkCreateDevice on \"{}\": {e:?}", info.name)))?;
         let queue = unsafe { raw.get_device_queue(queue_family, 0) };
 
-        let allocator = Allocator::new(&AllocatorCreateDesc {
-            instance: instance.raw().clone(),
-            device: raw.clone(),
-            physical_device: physical,
-            debug_settings: Default::default(),
-            buffer_device_address: false,
-            allocation_sizes: Default::default(),
-        });
-        let allocator = match allocator {
+        let allocator = match new_allocator(&instance, &raw, physical) {
             Ok(a) => a,
             Err(e) => {
                 unsafe { raw.destroy_device(None) };
-                return Err(Error::Vulkan(format!("gpu-allocator: {e}")));
+                return Err(e);
             }
         };
         log::info!(
@@ -598,7 +591,93 @@ impl Device {
             queue: Mutex::new(queue),
             queue_family,
             info,
-            allocator: ManuallyDrop::new(Mutex::new(allocator)),
+            allocator: ManuallyDrop::new(Arc::new(Mutex::new(allocator))),
+            owned: true,
+            created: [AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0)],
+            instance,
+        }))
+    }
+
+    /// Wraps a caller's device (see [`ExternalDevice`]): nothing is created
+    /// but, when the caller gives no allocator, an allocator of our own on
+    /// its device. Dropping it destroys neither the device nor the instance;
+    /// it waits for the given queue to be idle.
+    pub fn from_external(external: ExternalDevice) -> Result<Arc<Device>> {
+        let ExternalDevice {
+            entry,
+            instance,
+            physical_device,
+            device,
+            queue_family,
+            queue,
+            enabled,
+            allocator,
+        } = external;
+        let instance = Arc::new(Instance::from_external(entry, instance));
+        let physicals = unsafe { instance.raw().enumerate_physical_devices() }?;
+        let index = physicals
+            .iter()
+            .position(|&p| p == physical_device)
+            .ok_or_else(|| {
+                Error::InvalidInput(
+                    "ExternalDevice::physical_device is not a device of ExternalDevice::instance"
+                        .into(),
+                )
+            })?;
+        let mut info = DeviceInfo::query(instance.raw(), physical_device, index);
+        if info.api_version < vk::API_VERSION_1_2 {
+            return Err(Error::Vulkan(format!(
+                "device \"{}\" has Vulkan {}; the engine needs 1.2",
+                info.name,
+                info.api_version_string()
+            )));
+        }
+        let families = unsafe {
+            instance
+                .raw()
+                .get_physical_device_queue_family_properties(physical_device)
+        };
+        let family = families.get(queue_family as usize).ok_or_else(|| {
+            Error::InvalidInput(format!(
+                "queue family {queue_family} does not exist on \"{}\" ({} families)",
+                info.name,
+                families.len()
+            ))
+        })?;
+        if !family.queue_flags.contains(vk::QueueFlags::COMPUTE) {
+            return Err(Error::InvalidInput(format!(
+                "queue family {queue_family} of \"{}\" has no compute ({:?})",
+                info.name, family.queue_flags
+            )));
+        }
+        info.compute_queue_family = Some(queue_family);
+        info.timestamp_valid_bits = family.timestamp_valid_bits;
+        // The passes use only what the caller enabled.
+        let supported = DeviceFeatures::of(&info);
+        let used = supported.and(enabled);
+        used.apply_to(&mut info);
+        let allocator = match allocator {
+            Some(shared) => shared,
+            None => Arc::new(Mutex::new(new_allocator(
+                &instance,
+                &device,
+                physical_device,
+            )?)),
+        };
+        log::info!(
+            "vulkan device (the caller's): {} ({}, {})",
+            info.name,
+            info.device_type,
+            info.driver_info
+        );
+        Ok(Arc::new(Device {
+            raw: device,
+            physical: physical_device,
+            queue: Mutex::new(queue),
+            queue_family,
+            info,
+            allocator: ManuallyDrop::new(allocator),
+            owned: false,
             created: [AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0)],
             instance,
         }))
@@ -705,11 +784,199 @@ impl std::ops::Sub for Allocations {
 impl Drop for Device {
     fn drop(&mut self) {
         unsafe {
-            // Nothing may be destroyed while the GPU still uses it.
-            let _ = self.raw.device_wait_idle();
-            // Frees every memory block before the device goes.
+            // Nothing may be destroyed while the GPU still uses it. On the
+            // caller's device only our queue is ours to wait for.
+            if self.owned {
+                let _ = self.raw.device_wait_idle();
+            } else {
+                let _ = self.raw.queue_wait_idle(*lock(&self.queue));
+            }
+            // Frees every memory block of our own allocator before the
+            // device goes (a shared one loses a reference).
             ManuallyDrop::drop(&mut self.allocator);
-            self.raw.destroy_device(None);
+            if self.owned {
+                self.raw.destroy_device(None);
+            }
         }
     }
+}
+
+fn new_allocator(
+    instance: &Instance,
+    device: &ash::Device,
+    physical: vk::PhysicalDevice,
+) -> Result<Allocator> {
+    Allocator::new(&AllocatorCreateDesc {
+        instance: instance.raw().clone(),
+        device: device.clone(),
+        physical_device: physical,
+        debug_settings: Default::default(),
+        buffer_device_address: false,
+        allocation_sizes: Default::default(),
+    })
+    .map_err(|e| Error::Vulkan(format!("gpu-allocator: {e}")))
+}
+
+/// Optional device features the passes use when enabled (none is
+/// required: each has a path without it).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DeviceFeatures {
+    /// `shaderInt64`.
+    pub shader_int64: bool,
+    /// `shaderBufferInt64Atomics` (Vulkan 1.2).
+    pub shader_buffer_int64_atomics: bool,
+    /// `shaderSharedInt64Atomics` (Vulkan 1.2).
+    pub shader_shared_int64_atomics: bool,
+    /// `shaderStorageImageReadWithoutFormat`.
+    pub storage_image_read_without_format: bool,
+    /// `shaderStorageImageWriteWithoutFormat`.
+    pub storage_image_write_without_format: bool,
+}
+
+impl DeviceFeatures {
+    /// What the device supports.
+    fn of(info: &DeviceInfo) -> Self {
+        DeviceFeatures {
+            shader_int64: info.shader_int64,
+            shader_buffer_int64_atomics: info.shader_buffer_int64_atomics,
+            shader_shared_int64_atomics: info.shader_shared_int64_atomics,
+            storage_image_read_without_format: info.storage_image_read_without_format,
+            storage_image_write_without_format: info.storage_image_write_without_format,
+        }
+    }
+
+    /// Features in both.
+    fn and(self, o: Self) -> Self {
+        DeviceFeatures {
+            shader_int64: self.shader_int64 && o.shader_int64,
+            shader_buffer_int64_atomics: self.shader_buffer_int64_atomics
+                && o.shader_buffer_int64_atomics,
+            shader_shared_int64_atomics: self.shader_shared_int64_atomics
+                && o.shader_shared_int64_atomics,
+            storage_image_read_without_format: self.storage_image_read_without_format
+                && o.storage_image_read_without_format,
+            storage_image_write_without_format: self.storage_image_write_without_format
+                && o.storage_image_write_without_format,
+        }
+    }
+
+    fn apply_to(self, info: &mut DeviceInfo) {
+        info.shader_int64 = self.shader_int64;
+        info.shader_buffer_int64_atomics = self.shader_buffer_int64_atomics;
+        info.shader_shared_int64_atomics = self.shader_shared_int64_atomics;
+        info.storage_image_read_without_format = self.storage_image_read_without_format;
+        info.storage_image_write_without_format = self.storage_image_write_without_format;
+    }
+}
+
+/// What the engine needs of a Vulkan device, for a renderer that creates
+/// its own device and hands it over ([`ExternalDevice`]): merge these into
+/// its own device creation.
+///
+/// - Vulkan 1.2 (instance and device), no instance or device extension;
+/// - a queue family with `COMPUTE` ([`Engine::render`](crate::render::Engine::render)'s
+///   view samples rasterise, so that one needs `GRAPHICS` too);
+/// - no required feature; the optional [`DeviceFeatures`] that the device
+///   supports, which [`DeviceRequirements::enable`] sets;
+/// - no limit above Vulkan 1.2's minimums: work larger than a limit
+///   (`maxStorageBufferRange`, workgroup counts) runs in batches.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DeviceRequirements {
+    /// The Vulkan version the instance and device must have.
+    pub api_version: u32,
+    /// Device extensions to enable (none today).
+    pub extensions: Vec<&'static CStr>,
+    /// Queue capabilities of the family the engine submits to.
+    pub queue_flags: vk::QueueFlags,
+    /// Optional features to enable where supported.
+    pub features: DeviceFeatures,
+}
+
+impl DeviceRequirements {
+    /// The requirements on `physical`: `Err` when it cannot run the engine
+    /// (below Vulkan 1.2, no compute queue), else what to enable on it.
+    pub fn for_physical_device(
+        instance: &ash::Instance,
+        physical: vk::PhysicalDevice,
+    ) -> Result<Self> {
+        let info = DeviceInfo::query(instance, physical, 0);
+        if !info.usable() {
+            return Err(Error::Vulkan(format!(
+                "device \"{}\" needs Vulkan 1.2 and a compute queue (it has Vulkan {})",
+                info.name,
+                info.api_version_string()
+            )));
+        }
+        Ok(Self::from_info(&info))
+    }
+
+    fn from_info(info: &DeviceInfo) -> Self {
+        DeviceRequirements {
+            api_version: vk::API_VERSION_1_2,
+            extensions: Vec::new(),
+            queue_flags: vk::QueueFlags::COMPUTE,
+            features: DeviceFeatures::of(info),
+        }
+    }
+
+    /// Sets the features the engine uses in a device's create info (ORed
+    /// into what the caller enables for itself).
+    pub fn enable(
+        &self,
+        features: &mut vk::PhysicalDeviceFeatures,
+        features12: &mut vk::PhysicalDeviceVulkan12Features,
+    ) {
+        let on = |set: bool, flag: &mut vk::Bool32| {
+            if set {
+                *flag = vk::TRUE;
+            }
+        };
+        let f = self.features;
+        on(f.shader_int64, &mut features.shader_int64);
+        on(
+            f.storage_image_read_without_format,
+            &mut features.shader_storage_image_read_without_format,
+        );
+        on(
+            f.storage_image_write_without_format,
+            &mut features.shader_storage_image_write_without_format,
+        );
+        on(
+            f.shader_buffer_int64_atomics,
+            &mut features12.shader_buffer_int64_atomics,
+        );
+        on(
+            f.shader_shared_int64_atomics,
+            &mut features12.shader_shared_int64_atomics,
+        );
+    }
+}
+
+/// A renderer's own Vulkan objects, handed to
+/// [`Engine::from_external`](crate::render::Engine::from_external). The
+/// caller keeps them alive until the engine is dropped and destroys them
+/// after; the engine destroys only what it made.
+///
+/// The engine submits its work to `queue` and waits for it on each call:
+/// the caller must not use that queue from another thread meanwhile
+/// (Vulkan's external synchronisation of queues).
+pub struct ExternalDevice {
+    /// The caller's loader.
+    pub entry: ash::Entry,
+    /// The caller's instance (Vulkan 1.2 or later).
+    pub instance: ash::Instance,
+    /// The physical device `device` was created on.
+    pub physical_device: vk::PhysicalDevice,
+    /// The caller's device.
+    pub device: ash::Device,
+    /// A queue family with `COMPUTE` (and `GRAPHICS` for `Engine::render`).
+    pub queue_family: u32,
+    /// A queue of that family.
+    pub queue: vk::Queue,
+    /// The optional features the caller enabled on `device` (the passes use
+    /// no other): [`DeviceRequirements::features`] when it called
+    /// [`DeviceRequirements::enable`].
+    pub enabled: DeviceFeatures,
+    /// The caller's allocator, shared; `None`: the engine makes its own.
+    pub allocator: Option<Arc<Mutex<Allocator>>>,
 }

@@ -64,9 +64,24 @@ pub struct Instance {
     // instance's whole life, including vkDestroyInstance.
     messages: Box<ValidationMessages>,
     validation: ValidationLevel,
+    /// Whether the instance is ours to destroy (false: the caller's).
+    owned: bool,
 }
 
 impl Instance {
+    /// Wraps a caller's instance: no validation messenger of ours (the
+    /// caller's own sees the messages), and dropping it destroys nothing.
+    pub fn from_external(entry: ash::Entry, raw: ash::Instance) -> Self {
+        Instance {
+            entry,
+            raw,
+            debug: None,
+            messages: Box::default(),
+            validation: ValidationLevel::Off,
+            owned: false,
+        }
+    }
+
     /// Loads the Vulkan loader and creates an instance for Vulkan 1.2.
     ///
     /// With validation, `VK_LAYER_KHRONOS_validation` must be installed
@@ -168,6 +183,7 @@ impl Instance {
             debug: None,
             messages,
             validation,
+            owned: true,
         };
         if validation != ValidationLevel::Off {
             let loader = ash::ext::debug_utils::Instance::new(&instance.entry, &instance.raw);
@@ -226,7 +242,9 @@ impl Drop for Instance {
             if let Some((loader, messenger)) = self.debug.take() {
                 loader.destroy_debug_utils_messenger(messenger, None);
             }
-            self.raw.destroy_instance(None);
+            if self.owned {
+                self.raw.destroy_instance(None);
+            }
         }
     }
 }

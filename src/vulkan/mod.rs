@@ -88,7 +88,8 @@ pub use buffer::{
 pub use commands::CommandRecorder;
 pub use context::{ContextOptions, GpuContext};
 pub use device::{
-    list_devices, Allocations, Device, DeviceInfo, DeviceLimits, DeviceType, MemoryHeapInfo,
+    list_devices, Allocations, Device, DeviceFeatures, DeviceInfo, DeviceLimits,
+    DeviceRequirements, DeviceType, ExternalDevice, MemoryHeapInfo,
 };
 pub use graphics::{
     vertex_input_barrier, Attachment, Framebuffer, GraphicsPipeline, GraphicsPipelineDesc,
