@@ -64,6 +64,7 @@ pub fn default_scenes() -> Vec<String> {
 /// One configuration's result: a row of `bench.csv`.
 #[derive(Clone, Debug)]
 pub struct BenchRow {
+    /// The scene's name without its folders (`builtin:demo`, `Lantern.gltf`).
     pub scene: String,
     /// `ours-lut`, `ours-exact`, `pcf`, `pcss`, `per-sample-maps` or `oracle`.
     pub method: String,
@@ -73,7 +74,10 @@ pub struct BenchRow {
     pub light_samples: u32,
     /// Median wall milliseconds.
     pub time_ms: f64,
+    /// Root mean square visibility error against the oracle's reference,
+    /// over the pixels with a view sample.
     pub rmse: f64,
+    /// Largest absolute visibility error of such a pixel.
     pub max_abs: f64,
     /// Share of pixels off by more than 1/255.
     pub share_over_1_255: f64,

@@ -22,24 +22,41 @@ use crate::{Error, Result};
 /// exact samples used.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct DumpLight {
+    /// The [`LightShape`]: `point`, `directional`, `sphere`, `disk`,
+    /// `rect`, `ellipsoid` or `explicit`.
     pub kind: String,
+    /// World-space position or centre; `None` for directional and explicit
+    /// lights.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub position: Option<[f64; 3]>,
+    /// Unit direction light travels in; directional lights only.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub direction: Option<[f64; 3]>,
+    /// Radius in world units; sphere and disk lights only.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub radius: Option<f64>,
+    /// Full extent along the tangent and bitangent; rect lights only.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub size: Option<[f64; 2]>,
+    /// Semi-axis lengths along tangent, bitangent and normal; ellipsoid
+    /// lights only.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub semi_axes: Option<[f64; 3]>,
+    /// Unit normal; disk, rect and ellipsoid lights only.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub normal: Option<[f64; 3]>,
+    /// Unit tangent (orthogonal to `normal`); disk, rect and ellipsoid
+    /// lights only.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub tangent: Option<[f64; 3]>,
+    /// The [`Distribution`](crate::light::Distribution), lower case
+    /// (`uniform`, `stratified`, `poisson` or `sobol`).
     pub distribution: String,
+    /// The light's sample seed ([`Light::seed`]).
     pub seed: u64,
+    /// Linear RGB colour used in shading.
     pub color: [f32; 3],
+    /// Scale of `color` in shading.
     pub intensity: f32,
     /// World-space sample positions in order (empty for a directional light).
     pub samples: Vec<[f64; 3]>,
@@ -141,7 +158,9 @@ impl DumpLight {
 /// `scene.json`.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct DumpScene {
+    /// The camera the frame was rendered with.
     pub camera: Camera,
+    /// Every light, in scene order (light K of `visibility_K.exr`).
     pub lights: Vec<DumpLight>,
 }
 
@@ -149,7 +168,9 @@ pub struct DumpScene {
 /// [`Dump::read`] reads back.
 #[derive(Clone, Debug)]
 pub struct Dump {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// Per pixel: view-sample position minus the camera eye, and 1 in w where
     /// there is a view sample (0 elsewhere).
@@ -158,6 +179,7 @@ pub struct Dump {
     pub normal: Vec<[f32; 4]>,
     /// Per light, per pixel: [visible fraction, evaluated by the shadow passes (1/0), 0, has view sample].
     pub visibility: Vec<Vec<[f32; 4]>>,
+    /// `scene.json`: the camera and the lights with their samples.
     pub scene: DumpScene,
     /// `stats.json` (free-form: device, settings, timings, counters).
     pub stats: serde_json::Value,
@@ -289,13 +311,18 @@ impl Dump {
 /// How two dumps' visibilities differ, per light.
 #[derive(Clone, Debug, Serialize)]
 pub struct Comparison {
+    /// Index of the light in both dumps.
     pub light: usize,
     /// Pixels that have a view sample in both dumps.
     pub pixels: usize,
     /// Pixels where exactly one of the dumps has a view sample.
     pub coverage_mismatch: usize,
+    /// Mean absolute visibility difference over the compared pixels (0
+    /// when there are none).
     pub mean_abs: f64,
+    /// Root mean square visibility difference over the compared pixels.
     pub rmse: f64,
+    /// Largest absolute visibility difference of a compared pixel.
     pub max_abs: f64,
     /// Share of compared pixels whose visibilities differ by more than one light sample (1/samples).
     pub share_over_one_sample: f64,

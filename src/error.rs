@@ -9,16 +9,29 @@ pub enum Error {
     /// Reading or writing a file failed.
     #[error("{path}: {source}")]
     Io {
+        /// The file or folder that could not be read or written.
         path: PathBuf,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
     /// A glTF file could not be loaded or holds invalid geometry.
     #[error("{path}: {message}")]
-    Gltf { path: PathBuf, message: String },
+    Gltf {
+        /// The glTF (`.gltf` or `.glb`) file read or written.
+        path: PathBuf,
+        /// What went wrong, naming the mesh, node or light where there is
+        /// one.
+        message: String,
+    },
     /// A scene file (TOML) is malformed or has an invalid value.
     #[error("{path}: {message}")]
-    SceneFile { path: PathBuf, message: String },
+    SceneFile {
+        /// The `.toml` scene file.
+        path: PathBuf,
+        /// What is wrong, naming the key (and line, for a parse error).
+        message: String,
+    },
     /// An invalid argument or value given through the API or the CLI.
     #[error("invalid input: {0}")]
     InvalidInput(String),

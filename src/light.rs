@@ -26,46 +26,84 @@ pub enum Distribution {
 #[derive(Clone, Debug, PartialEq)]
 pub enum LightShape {
     /// A point light.
-    Point { position: DVec3 },
-    /// A light at infinity; `direction` is the direction light travels (unit).
-    Directional { direction: DVec3 },
-    /// A volumetric ball.
-    Sphere { position: DVec3, radius: f64 },
+    Point {
+        /// World-space position of the light.
+        position: DVec3,
+    },
+    /// A light at infinity.
+    Directional {
+        /// The direction light travels in (unit, world space); shadow rays
+        /// go towards `-direction`.
+        direction: DVec3,
+    },
+    /// A volumetric ball: samples fill its volume.
+    Sphere {
+        /// World-space centre.
+        position: DVec3,
+        /// Radius in world units (> 0).
+        radius: f64,
+    },
     /// A planar disk emitting towards `normal`.
     Disk {
+        /// World-space centre.
         position: DVec3,
+        /// Radius in world units (> 0).
         radius: f64,
+        /// Unit normal of the disk's plane.
         normal: DVec3,
+        /// Unit in-plane axis, orthogonal to `normal`; with
+        /// `normal x tangent` it orients the sample pattern.
         tangent: DVec3,
     },
-    /// A planar rectangle emitting towards `normal`; `size` is the full extent
-    /// along `tangent` and along `normal x tangent`.
+    /// A planar rectangle emitting towards `normal`.
     Rect {
+        /// World-space centre.
         position: DVec3,
+        /// Full extent in world units along `tangent` (x) and along
+        /// `normal x tangent` (y).
         size: DVec2,
+        /// Unit normal of the rectangle's plane.
         normal: DVec3,
+        /// Unit in-plane axis of the first side (`size.x`), orthogonal to
+        /// `normal`.
         tangent: DVec3,
     },
-    /// A volumetric ellipsoid; `semi_axes` along `tangent`, `normal x tangent`, `normal`.
+    /// A volumetric ellipsoid: samples fill its volume.
     Ellipsoid {
+        /// World-space centre.
         position: DVec3,
+        /// Semi-axis lengths in world units along `tangent`,
+        /// `normal x tangent` and `normal`.
         semi_axes: DVec3,
+        /// Unit axis of the third semi-axis.
         normal: DVec3,
+        /// Unit axis of the first semi-axis, orthogonal to `normal`.
         tangent: DVec3,
     },
-    /// An explicit list of world-space sample positions.
-    Explicit { positions: Vec<DVec3> },
+    /// An explicit list of light samples.
+    Explicit {
+        /// World-space sample positions, used as given (1 to
+        /// [`MAX_LIGHT_SAMPLES`]).
+        positions: Vec<DVec3>,
+    },
 }
 
 /// A light: its shape, how it is sampled and how it shades.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Light {
+    /// Where the light is and what its extent is.
     pub shape: LightShape,
     /// Number of light samples (1 for point and directional lights).
     pub samples: u32,
+    /// How the samples are spread over the shape (ignored by point,
+    /// directional and explicit lights).
     pub distribution: Distribution,
+    /// Seed of the sample pattern: the same seed, distribution and count
+    /// give the same samples.
     pub seed: u64,
+    /// Linear RGB colour (each ≥ 0), used only for shading.
     pub color: [f32; 3],
+    /// Scale of `color` in shading (≥ 0); visibility does not depend on it.
     pub intensity: f32,
 }
 

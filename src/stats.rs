@@ -22,18 +22,32 @@ pub struct ShadowStats {
     pub light_faces: usize,
     /// View samples in some light-texel list.
     pub listed_view_samples: u64,
-    /// Light texels with a non-empty list, and their share of all.
+    /// Light texels (over all faces) with a non-empty list.
     pub occupied_texels: usize,
+    /// `occupied_texels` as a percentage of all `light_faces` ×
+    /// `light_texels`² texels.
     pub occupied_texels_percent: f64,
-    /// Mean list length over the occupied texels, and the longest list.
+    /// Mean list length over the occupied texels.
     pub average_list_length: f64,
+    /// Length of the longest light-texel list (view samples).
     pub max_list_length: u32,
-    /// Triangles the caster setup saw, and what became of them.
+    /// Triangles the caster setup saw: `triangles_culled` plus
+    /// `triangles_rasterized`.
     pub triangles_submitted: u64,
+    /// Triangles dropped before rasterization: the sum of the degenerate,
+    /// front-facing closed and outside-frustum counts.
     pub triangles_culled: u64,
+    /// Triangles with a zero or non-finite normal or a plane through the
+    /// light, dropped by `casters_setup.comp` (`COUNTER_DEGENERATE`).
     pub triangles_degenerate: u32,
+    /// Triangles of closed meshes that face the light (paper §3.3), dropped
+    /// because the mesh's back faces shadow the same samples
+    /// (`COUNTER_FRONT_FACING_CLOSED`).
     pub triangles_front_facing_closed: u32,
+    /// Triangles that overlap no light face's frustum (`COUNTER_CULLED`).
     pub triangles_outside_frustum: u32,
+    /// Triangles that produced at least one (caster, face) pair
+    /// (`COUNTER_RASTERIZED`).
     pub triangles_rasterized: u32,
     /// (Caster, light face) pairs rasterized.
     pub caster_face_pairs: u32,
@@ -69,13 +83,20 @@ pub struct ShadowStats {
 /// What the soft-shadow passes add.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SoftStats {
+    /// Light samples of the light (1 to
+    /// [`MAX_SOFT_SAMPLES`](crate::gpu::soft_light::MAX_SOFT_SAMPLES)).
     pub light_samples: usize,
-    /// `lut` or `exact`.
+    /// The evaluation mode's name ([`SoftMode::name`](crate::scene::file::SoftMode::name):
+    /// `lut`, `exact` or `approx`).
     pub mode: String,
+    /// Plane look-up texture resolution (`lut_resolution`³ texels per
+    /// 128-sample block); unused in `exact` mode.
     pub lut_resolution: u32,
-    /// View-sample–triangle tests that blocked at least one light sample,
-    /// and their share of all tests.
+    /// View-sample–triangle tests that blocked at least one light sample
+    /// (`COUNTER_BLOCKING`).
     pub blocking_tests: u32,
+    /// `blocking_tests` as a fraction (0 to 1) of all
+    /// view-sample–triangle tests.
     pub blocking_share: f64,
     /// Whether this run built the plane look-up texture (it is built once
     /// per light shape and reused: its time, `ms.lut_build`, appears only
@@ -85,6 +106,7 @@ pub struct SoftStats {
     /// the exact per-sample test decided, and their share of all the tests'
     /// bits (tests × light samples).
     pub unsure_bits: u64,
+    /// `unsure_bits` as a fraction (0 to 1) of tests × light samples.
     pub unsure_share: f64,
 }
 
@@ -160,15 +182,21 @@ impl ShadowStats {
 pub struct FrameStats {
     /// The Vulkan device.
     pub device: String,
+    /// The scene's report name ([`SceneDescription::name`](crate::scene::file::SceneDescription::name)).
     pub scene: String,
+    /// The engine settings the frame ran with.
     pub settings: ShadowSettings,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Milliseconds of the steps outside the lights' shadow passes.
     pub ms: FrameMs,
     /// Per light, in scene order.
     pub lights: Vec<LightStats>,
     /// Host wall time of the whole frame.
     pub total_ms: f64,
+    /// Triangles and view samples of the frame.
     pub counters: FrameCounters,
     /// Buffers and images the whole frame created (0 for a second frame of
     /// the same size: every resource lives across frames).
@@ -178,7 +206,10 @@ pub struct FrameStats {
 /// Milliseconds of a frame's steps outside the lights' passes.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FrameMs {
+    /// GPU time of the view-sample pass (rasterization and resolve), from
+    /// timestamp queries; NaN where the device has none.
     pub view_samples_gpu: f64,
+    /// Host time of shading the image on the CPU ([`crate::shade`]).
     pub shade_cpu: f64,
 }
 
@@ -189,46 +220,68 @@ pub struct LightStats {
     pub light: usize,
     /// `gpu hard shadows` or `gpu soft shadows`.
     pub path: String,
+    /// The counters and pass times of the light's shadow passes.
     pub stats: ShadowStats,
 }
 
 /// A frame's scene counters.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FrameCounters {
+    /// Triangles uploaded to the GPU (every triangle of the scene).
     pub triangles: usize,
+    /// Pixels with a valid view sample (the rest see no geometry).
     pub view_samples: usize,
 }
 
 /// A frame of the CPU oracle.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ReferenceStats {
+    /// Always `cpu oracle (ray casting)`.
     pub device: String,
+    /// The scene's report name ([`SceneDescription::name`](crate::scene::file::SceneDescription::name)).
     pub scene: String,
+    /// The engine settings of the scene (the oracle itself uses none).
     pub settings: ShadowSettings,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Milliseconds per step of the frame.
     pub ms: ReferenceMs,
+    /// Host wall time of the whole frame.
     pub total_ms: f64,
+    /// Triangles, samples and rays of the frame.
     pub counters: ReferenceCounters,
 }
 
 /// Milliseconds of an oracle frame's steps.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ReferenceMs {
+    /// Building the oracle's BVH over the scene's triangles.
     pub bvh: f64,
+    /// Casting the primary rays that give the view samples.
     pub view_samples: f64,
+    /// Casting the shadow rays, one entry per light in scene order.
     pub shadow_rays_per_light: Vec<f64>,
+    /// Shading the image ([`crate::shade`]).
     pub shade: f64,
 }
 
 /// An oracle frame's counters.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ReferenceCounters {
+    /// Triangles of the scene (the oracle's input).
     pub triangles: usize,
+    /// Pixels whose primary ray hit a triangle.
     pub view_samples: usize,
+    /// Light samples per light, in scene order (1 for a point or
+    /// directional light).
     pub light_samples: Vec<usize>,
+    /// Shadow rays cast over all lights.
     pub shadow_rays: u64,
+    /// `shadow_rays` over the summed shadow-ray time (0 when that is 0).
     pub shadow_rays_per_second: f64,
+    /// Rayon worker threads the oracle ran on.
     pub threads: usize,
 }
 
@@ -236,7 +289,9 @@ pub struct ReferenceCounters {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum Stats {
+    /// A frame of the GPU path ([`crate::render::Engine::render`]).
     Gpu(FrameStats),
+    /// A frame of the CPU oracle ([`crate::render::render_reference`]).
     Reference(ReferenceStats),
 }
 

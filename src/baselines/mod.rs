@@ -75,6 +75,7 @@ pub struct PcfSettings {
     pub resolution: u32,
     /// Kernel radius k: (2k+1)² taps one texel apart (0: one tap).
     pub kernel: u32,
+    /// Depth bias and normal offset of the map look-ups.
     pub bias: Bias,
 }
 
@@ -88,6 +89,7 @@ pub struct PcssSettings {
     pub kernel: u32,
     /// The widest search or filter radius, in texels.
     pub max_radius_texels: f32,
+    /// Depth bias and normal offset of the map look-ups.
     pub bias: Bias,
 }
 
@@ -98,6 +100,7 @@ pub struct PerSampleSettings {
     pub resolution: u32,
     /// PCF kernel radius per map (0: one tap, the plain sample-based method).
     pub kernel: u32,
+    /// Depth bias and normal offset of the map look-ups.
     pub bias: Bias,
 }
 

@@ -57,14 +57,17 @@ const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 pub struct LightFrame {
     /// Light position, camera-relative (the origin for an orthographic frame).
     pub origin: Vec3,
-    /// Light-space axes; depth is measured along `forward`.
+    /// Light-space x axis (unit); depth is measured along `forward`.
     pub right: Vec3,
+    /// Light-space y axis (unit).
     pub up: Vec3,
+    /// Light-space depth axis (unit): the direction the map looks along.
     pub forward: Vec3,
     /// Orthographic (directional light) rather than perspective.
     pub ortho: bool,
     /// Projected coordinates (x/z, y/z, or x, y) -> NDC: `a * scale + offset`.
     pub scale: [f32; 2],
+    /// The NDC offset of x and y in that mapping.
     pub offset: [f32; 2],
     /// Perspective: near plane; orthographic: far end of the depth range.
     pub near_or_far: f32,
@@ -226,9 +229,13 @@ pub struct FilterParams {
     pub pcss_radius: Option<f32>,
     /// PCSS: the widest search and filter radius, in texels.
     pub max_radius_texels: f32,
-    /// Bias: constant, slope-scaled and normal offset, in receiver texel footprints.
+    /// Constant depth bias, in receiver texel footprints ([`Bias::constant`](super::Bias::constant)).
     pub constant: f32,
+    /// Slope-scaled depth bias, in receiver texel footprints
+    /// ([`Bias::slope`](super::Bias::slope)).
     pub slope: f32,
+    /// Normal offset of the receiver, in receiver texel footprints
+    /// ([`Bias::normal_offset`](super::Bias::normal_offset)).
     pub normal_offset: f32,
     /// Compare with the receiver's plane at each tap's texel.
     pub receiver_plane: bool,

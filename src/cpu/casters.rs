@@ -62,7 +62,10 @@ pub type TexelEdges = [[f32; 3]; 3];
 /// One (caster, face) pair to rasterize.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CasterFace {
+    /// Index of the caster in the triangles given to [`setup_casters`].
     pub triangle: u32,
+    /// Light face the pair rasterizes in (0 to 5 for a point light's cube
+    /// faces, 0 for a directional light).
     pub face: u32,
     /// Inclusive texel rectangle (x0, y0, x1, y1).
     pub rect: [u32; 4],
@@ -75,10 +78,18 @@ pub struct CasterFace {
 /// What the setup decided for the counters.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CasterCounts {
+    /// Triangles given to the setup.
     pub submitted: u32,
+    /// Triangles skipped as [`Skip::Degenerate`] (`COUNTER_DEGENERATE`).
     pub degenerate: u32,
+    /// Triangles skipped as [`Skip::FrontFacingClosed`]
+    /// (`COUNTER_FRONT_FACING_CLOSED`).
     pub front_facing_closed: u32,
+    /// Casting triangles that overlap no light face's window pyramid, so
+    /// produced no pair (`COUNTER_CULLED`).
     pub culled_frustum: u32,
+    /// Casting triangles with at least one (caster, face) pair
+    /// (`COUNTER_RASTERIZED`).
     pub rasterized: u32,
 }
 
@@ -170,7 +181,11 @@ pub fn caster_planes(light: &LightView, v: [Vec3; 3], closed: bool) -> Result<Ca
 /// Why a triangle does not cast.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Skip {
+    /// A zero or non-finite normal, or a plane that contains the light (or
+    /// is parallel to a directional light's direction).
     Degenerate,
+    /// A triangle of a closed mesh whose front faces the light: the mesh's
+    /// back faces shadow everything it would.
     FrontFacingClosed,
 }
 

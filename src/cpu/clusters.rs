@@ -15,7 +15,9 @@ pub const CLUSTER_MAX_SAMPLES: usize = 16384;
 /// The box of a tile's listed samples (camera-relative).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TileBox {
+    /// Per-axis minimum of the tile's sample positions.
     pub lo: Vec3,
+    /// Per-axis maximum of the tile's sample positions.
     pub hi: Vec3,
 }
 
@@ -40,7 +42,10 @@ pub fn tile_boxes(offsets: &[u32], positions: &[Vec3]) -> Vec<Option<TileBox>> {
 /// The light as the rules see it (camera-relative).
 #[derive(Clone, Copy, Debug)]
 pub enum ClusterLight {
+    /// A point light at this camera-relative position.
     Point(Vec3),
+    /// A directional light travelling along this direction (need not be
+    /// unit).
     Directional(Vec3),
     /// A light with extent: its samples' bounding sphere.
     Sphere(Vec3, f32),

@@ -16,8 +16,11 @@ pub struct HardShadows {
     /// Per sample: `None` where there is no sample or it faces away from the
     /// light (unlit without any shadow test), else whether it is lit.
     pub lit: Vec<Option<bool>>,
+    /// The per-light-texel lists of view samples the frame built.
     pub lists: TexelLists,
+    /// What the caster setup did with each triangle.
     pub casters: CasterCounts,
+    /// Texels visited and tests run by the occlusion.
     pub occlusion: OcclusionCounts,
 }
 

@@ -17,10 +17,16 @@ pub const POINT_LIGHT_FACES: usize = 6;
 /// The light, as the passes see it (camera-relative, `f32`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LightView {
-    /// A point light at `position`.
-    Point { position: Vec3 },
-    /// A directional light; `direction` is where light travels (unit).
-    Directional { direction: Vec3 },
+    /// A point light.
+    Point {
+        /// The light's camera-relative position.
+        position: Vec3,
+    },
+    /// A directional light.
+    Directional {
+        /// Unit direction the light travels in.
+        direction: Vec3,
+    },
 }
 
 impl LightView {
@@ -145,11 +151,13 @@ pub fn key_float(k: u32) -> f32 {
 pub struct FaceWindow {
     /// Whether any view sample falls in this face.
     pub valid: bool,
-    /// Lower corner of the window in projected coordinates.
+    /// Left edge (lowest x) of the window in projected coordinates.
     pub x0: f32,
+    /// Bottom edge (lowest y) of the window in projected coordinates.
     pub y0: f32,
-    /// Texels per projected unit along x and y.
+    /// Texels per projected unit along x.
     pub sx: f32,
+    /// Texels per projected unit along y.
     pub sy: f32,
     /// Depth of the farthest view sample in this face.
     pub z_far: f32,

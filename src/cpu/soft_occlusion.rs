@@ -8,10 +8,19 @@ use super::plane_lut::{blocks, lut_index, BlockBits};
 
 /// How the bits of a plane are found.
 pub enum PlaneBits<'a> {
-    /// Looked up in a table from [`build_lut`](crate::cpu::plane_lut::build_lut) of this resolution.
-    Lut { lut: &'a [BlockBits], res: u32 },
-    /// Every light sample (camera-relative) tested.
-    Exact { samples: &'a [Vec3] },
+    /// Looked up in a table from [`build_lut`](crate::cpu::plane_lut::build_lut).
+    Lut {
+        /// The table: for each of the `res`³ texels ([`lut_index`]), one
+        /// [`BlockBits`] per 128-sample block.
+        lut: &'a [BlockBits],
+        /// The table's resolution per axis.
+        res: u32,
+    },
+    /// Every light sample tested.
+    Exact {
+        /// The light samples, camera-relative.
+        samples: &'a [Vec3],
+    },
 }
 
 /// The light samples (one [`BlockBits`] per block) that triangle (a, b, c)

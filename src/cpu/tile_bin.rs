@@ -66,6 +66,7 @@ pub fn tiles_touched(cf: &CasterFace) -> Vec<(u32, u32)> {
 pub struct BinClusters<'a> {
     /// Per tile, the box of its listed samples.
     pub boxes: &'a [Option<TileBox>],
+    /// The light the rules test the boxes against.
     pub light: ClusterLight,
     /// Per triangle of the run: vertices (camera-relative) and whether it
     /// belongs to a closed mesh.
@@ -78,8 +79,11 @@ pub struct Bins {
     /// Per tile (index `face · tiles_per_row² + y · tiles_per_row + x`), the
     /// indices into the pairs of the pairs binned there.
     pub tiles: Vec<Vec<u32>>,
-    /// (Pair, tile) bins dropped by each cluster rule.
+    /// (Pair, tile) bins dropped because every sample of the tile's box is
+    /// on the light's side of the caster's plane.
     pub dropped_light_side: u32,
+    /// (Pair, tile) bins dropped because every sample of the tile's box is
+    /// behind a closed caster (soft shadows).
     pub dropped_behind_closed: u32,
 }
 

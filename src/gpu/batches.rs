@@ -31,8 +31,12 @@ pub struct Batches {
 /// What a batched run needs besides its inputs.
 #[derive(Clone, Copy)]
 pub struct RunOf<'a> {
+    /// The light (camera-relative), or the centre of a light with extent.
     pub light: &'a LightView,
+    /// Light texels per face side.
     pub resolution: u32,
+    /// The light's samples and mode for soft shadows; `None` for hard
+    /// shadows.
     pub soft: Option<&'a SoftLight>,
 }
 

@@ -19,9 +19,11 @@ pub const TILE: u32 = 8;
 pub struct LightInputs<'a> {
     /// `n` [`GpuViewSample`](crate::gpu::shared::GpuViewSample)s (32 B each).
     pub samples: BufferSlice<'a>,
+    /// Number of view samples in `samples` (invalid ones included).
     pub n: u32,
     /// `nt` [`GpuTriangle`](crate::gpu::shared::GpuTriangle)s (48 B each).
     pub triangles: BufferSlice<'a>,
+    /// Number of triangles in `triangles` (this batch's).
     pub nt: u32,
     /// The global id of triangle 0 (triangle batches): view samples name
     /// their own triangle by global id.
@@ -35,15 +37,19 @@ pub struct LightFrame {
     pub faces: u32,
     /// Light texels per face side.
     pub resolution: u32,
+    /// Tiles of [`TILE`]² texels per face side (`resolution / TILE`,
+    /// rounded up).
     pub tiles_per_row: u32,
     /// Light texels of all faces in tile-major order (`texel_index` in
     /// `shadow_common.glsl`): every tile has 64, partial edge tiles too.
     pub texels: u64,
+    /// Tiles of all faces (`faces · tiles_per_row²`).
     pub tiles: u32,
     /// (triangle, face) pairs caster setup may write.
     pub pair_capacity: u32,
-    /// View samples and triangles.
+    /// View samples of the run ([`LightInputs::n`]).
     pub n: u32,
+    /// Triangles of the run ([`LightInputs::nt`]).
     pub nt: u32,
     /// Mask words per view sample (4 per 128-sample block; 0: hard shadows).
     pub mask_words: u64,
@@ -133,10 +139,16 @@ impl LightFrame {
 /// ([`Recording::pass`]); [`Recording::submit`] runs what is recorded and
 /// starts a new command buffer.
 pub struct Recording<'a> {
+    /// The device the run records for and submits to.
     pub ctx: &'a GpuContext,
+    /// Times each [`Recording::pass`].
     pub clock: &'a mut PassClock,
+    /// The command buffer being recorded (replaced by each
+    /// [`Recording::submit`]).
     pub cmd: CommandRecorder,
+    /// The run's view samples and triangles.
     pub inputs: LightInputs<'a>,
+    /// The run's sizes and push constants.
     pub frame: LightFrame,
 }
 

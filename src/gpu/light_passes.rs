@@ -64,27 +64,44 @@ pub struct SoftOutput {
 
 /// How a run ended.
 pub enum Ran {
+    /// Every pass ran: the light's results, counters and timings.
     Done(Box<ShadowOutput>),
     /// The binned pairs (4 B each) pass the device's binding limit: the
     /// triangles must run in smaller batches.
     TooManyPairs {
+        /// Bytes the binned (pair, tile) list would need (4 per entry),
+        /// more than `maxStorageBufferRange`.
         binned_bytes: u64,
     },
 }
 
 /// Every pass of a light, made once; their buffers live across frames.
 pub struct LightPasses {
+    /// §4.3: the light's frusta fitted to the view samples (faces and
+    /// windows).
     pub light_view: LightViewPass,
+    /// §3.1: the per-light-texel lists of view samples.
     pub texel_lists: TexelListPass,
+    /// The boxes of each tile's listed view samples (soft shadows).
     pub clusters: ClusterPass,
+    /// §3.3, §4.1: caster planes and (caster, face) pairs.
     pub casters: CasterPass,
+    /// §3.2: conservative rasterization of the pairs, binned per tile, and
+    /// the occlusion work units.
     pub tile_bin: TileBinPass,
+    /// §3.3: hard-shadow occlusion (one shadow flag per view sample).
     pub occlusion: OcclusionPass,
+    /// §4.2: the plane look-up texture, kept across runs of the same light
+    /// shape.
     pub plane_lut: PlaneLutPass,
+    /// §4.2: soft-shadow occlusion (a blocked light-sample mask per view
+    /// sample).
     pub soft_occlusion: SoftOcclusionPass,
+    /// Per view sample: evaluated or not, lit or visibility.
     pub resolve: ResolvePass,
     /// The passes' counters (`COUNTER_*`).
     pub counters: GrowBuffer,
+    /// Times each pass of a run (GPU timestamps or host wall clock).
     pub clock: PassClock,
 }
 

@@ -146,12 +146,23 @@ pub const NOT_LISTED: u32 = u32::MAX;
 pub const TRIANGLE_CLOSED: u32 = 4;
 /// Counter slots of the shadow passes (`COUNTER_*`).
 pub mod counter {
+    /// (Caster, light face) pairs the caster passes appended, including
+    /// any past the pair buffer's capacity (`COUNTER_PAIRS`).
     pub const PAIRS: usize = 0;
+    /// Triangles with a zero or non-finite normal or a plane through the
+    /// light, dropped by `casters_setup.comp`.
     pub const DEGENERATE: usize = 1;
+    /// Triangles of closed meshes that face the light, dropped by
+    /// `casters_setup.comp` (paper §3.3).
     pub const FRONT_FACING_CLOSED: usize = 2;
+    /// Triangles that overlap no light face (no pair appended).
     pub const CULLED: usize = 3;
+    /// Triangles that appended at least one (caster, face) pair.
     pub const RASTERIZED: usize = 4;
+    /// (Caster, texel) pairs that `occlusion.comp` visited.
     pub const TEXELS_VISITED: usize = 5;
+    /// View-sample–triangle tests of `occlusion.comp` and
+    /// `soft_occlusion.comp`.
     pub const TESTS: usize = 6;
     /// (Triangle, face mask) items left to `caster_clip`.
     pub const CLIP_ITEMS: usize = 7;
@@ -160,6 +171,7 @@ pub mod counter {
     /// Soft occlusion, look-up mode: light-sample bits the table left
     /// unsure and the exact test decided (low and high word of a u64).
     pub const UNSURE_LO: usize = 9;
+    /// High word of the unsure-bit count (see [`UNSURE_LO`]).
     pub const UNSURE_HI: usize = 10;
     /// Soft occlusion, look-up mode: (pair, block) entries with unsure bits.
     pub const UNSURE_PAIRS: usize = 11;
@@ -171,6 +183,8 @@ pub mod counter {
     /// Soft occlusion: (pair, chunk of 64 samples) visits that the chunk's
     /// own box or texels ruled out.
     pub const CLUSTER_CHUNK: usize = 14;
+    /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
+    /// buffer.
     pub const COUNT: usize = 15;
 }
 
@@ -187,8 +201,10 @@ pub struct LightPush {
     /// Pair capacity, tiles per row, tiles per face, occlusion work units
     /// (0 before they are known).
     pub more: [u32; 4],
-    /// Directional light face basis (right, up).
+    /// Directional light's face basis: xyz the right axis.
     pub dir_right: [f32; 4],
+    /// Directional light's face basis: xyz the up axis (forward is
+    /// `direction`).
     pub dir_up: [f32; 4],
     /// Soft shadows: 128-sample block, light samples (0: hard shadows),
     /// LUT resolution; w: look-up mode's occlusion, the dispatch's first
@@ -200,32 +216,43 @@ pub struct LightPush {
     pub soft_light: [f32; 4],
 }
 
-/// `LightFace`: a light face's basis and fitted window.
+/// `LightFace`: a light face's basis and fitted window, written by
+/// `light_view_finalize.comp`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLightFace {
     /// xyz: right; w: 1 when the face has samples.
     pub right: [f32; 4],
+    /// xyz: the face's up axis; w: 0.
     pub up: [f32; 4],
+    /// xyz: the axis the face looks along (depth); w: 0.
     pub forward: [f32; 4],
     /// x0, y0, sx, sy.
     pub window: [f32; 4],
     /// x: depth of the farthest sample.
     pub far: [f32; 4],
+    /// Padding to 128 bytes (`pad0`..`pad2`), written as 0.
     pub pad: [[f32; 4]; 3],
 }
 
-/// `CasterPlanes`.
+/// `CasterPlanes` (`shadow_common.glsl`): a caster's supporting plane and
+/// edge planes, written by `casters_setup.comp`. A point `p` is blocked when
+/// it is behind the supporting plane and inside all three edge planes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuCasterPlanes {
+    /// Supporting plane (xyz normal, w offset) on camera-relative points,
+    /// positive on the light's side: blocked needs `dot(xyz, p) + w < 0`.
     pub support: [f32; 4],
+    /// `edge0`..`edge2`: the planes through the light and each edge, on
+    /// light-relative points `q = p - origin`, oriented by `side`.
     pub edges: [[f32; 4]; 3],
     /// +1 or -1 per edge (see `CasterPlanes` in hard_common.glsl).
     pub side: [f32; 4],
 }
 
-/// `CasterFace`.
+/// `CasterFace` (`shadow_common.glsl`): one (caster, light face) pair to
+/// rasterize, appended by the caster passes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuCasterFace {

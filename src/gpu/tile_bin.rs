@@ -71,7 +71,10 @@ pub struct TileBinPass {
 /// What the count found: the binned pairs and the occlusion work units.
 #[derive(Clone, Copy, Debug)]
 pub struct BinTotals {
+    /// (Pair, tile) entries binned over all tiles: the length of
+    /// `tile_pairs`.
     pub pairs: u32,
+    /// Occlusion work units over all tiles (`tile_bin_units.comp`).
     pub units: u32,
 }
 

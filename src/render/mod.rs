@@ -41,7 +41,9 @@ use crate::stats::Stats;
 /// A rendered frame: the dump (view samples, visibility, scene, stats), the
 /// shaded image and the statistics.
 pub struct Frame {
+    /// Everything the frame computed, as `--dump DIR` writes it.
     pub dump: Dump,
+    /// The shaded image (sRGB, `image.png` of the dump).
     pub image: image::RgbImage,
     /// The view samples the frame used (with triangle ids, which the dump omits).
     pub view: ViewSamples,

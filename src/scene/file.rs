@@ -103,9 +103,13 @@ impl ShadowSettings {
 pub struct SceneDescription {
     /// A name for reports (the file name or `builtin:NAME`).
     pub name: String,
+    /// The geometry (world space), with any ground plane the file adds.
     pub scene: Scene,
+    /// The camera the frame is rendered from.
     pub camera: Camera,
+    /// Every light, in order: light K of the dump and of the statistics.
     pub lights: Vec<Light>,
+    /// The engine settings (the `[shadows]` table, or the defaults).
     pub shadows: ShadowSettings,
 }
 

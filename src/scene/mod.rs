@@ -18,9 +18,13 @@ use glam::{DVec2, DVec3};
 /// How a material's alpha is interpreted (glTF `alphaMode`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum AlphaMode {
+    /// `OPAQUE`: alpha is ignored and the surface is solid (the default).
     #[default]
     Opaque,
+    /// `MASK`: the surface is solid where alpha ≥
+    /// [`Material::alpha_cutoff`] and absent elsewhere.
     Mask,
+    /// `BLEND`: alpha is a coverage to blend with what is behind.
     Blend,
 }
 
@@ -36,11 +40,17 @@ pub struct Texture {
 /// A glTF material, reduced to what shadows need.
 #[derive(Clone, Debug)]
 pub struct Material {
+    /// The glTF material name, or a generated one (`default` for
+    /// [`Material::default`]).
     pub name: String,
+    /// How the base colour's alpha is interpreted.
     pub alpha_mode: AlphaMode,
     /// glTF `alphaCutoff` (0.5 when absent); used with [`AlphaMode::Mask`].
     pub alpha_cutoff: f32,
+    /// glTF `baseColorFactor`: linear RGBA that multiplies the texture
+    /// (alpha included); `[1.0; 4]` when absent.
     pub base_color_factor: [f32; 4],
+    /// The glTF `baseColorTexture`; `None` when the material has none.
     pub base_color_texture: Option<Texture>,
 }
 
@@ -155,11 +165,19 @@ pub fn is_closed(indices: &[[u32; 3]]) -> bool {
 /// A pinhole camera. `fov_y_deg` is the full vertical field of view.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Camera {
+    /// World-space position of the pinhole; the origin of every
+    /// camera-relative coordinate.
     pub eye: DVec3,
+    /// World-space point the camera looks at (distinct from `eye`).
     pub target: DVec3,
+    /// World-space up hint; need not be unit or orthogonal to the view
+    /// direction, but must not be parallel to it.
     pub up: DVec3,
+    /// Full vertical field of view in degrees, in (0, 180).
     pub fov_y_deg: f64,
+    /// Image width in pixels (1 to 16384).
     pub width: u32,
+    /// Image height in pixels (1 to 16384).
     pub height: u32,
 }
 
@@ -246,8 +264,13 @@ pub fn within_range(v: DVec3) -> bool {
 /// the source defined.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
+    /// Every mesh; each of their triangles casts and receives shadows.
     pub meshes: Vec<Mesh>,
+    /// Materials that [`Mesh::material`] indexes into.
     pub materials: Vec<Material>,
+    /// Cameras the source defined (glTF perspective cameras); the first
+    /// one is the frame's camera unless a scene file's `[camera]` replaces
+    /// it.
     pub cameras: Vec<Camera>,
     /// Lights the source defined (glTF `KHR_lights_punctual`: point and
     /// directional; spot lights as point lights).
@@ -378,6 +401,7 @@ fn ray_crosses(p: DVec3, dir: DVec3, v: [DVec3; 3]) -> bool {
 /// One triangle of a flattened scene, with the facts the shadow passes need.
 #[derive(Clone, Copy, Debug)]
 pub struct SceneTriangle {
+    /// World-space corners, counter-clockwise = front.
     pub vertices: [DVec3; 3],
     /// Index of the mesh it came from.
     pub mesh: u32,
