@@ -161,12 +161,13 @@ fuzz_target!(|data: &[u8]| {
     let settings = ShadowSettings {
         light_texels: b.u32() % 20000,
         soft_light_texels: b.u32() % 20000,
-        mode: if b.u8() % 2 == 0 {
-            SoftMode::Lut
-        } else {
-            SoftMode::Exact
+        mode: match b.u8() % 3 {
+            0 => SoftMode::Lut,
+            1 => SoftMode::Exact,
+            _ => SoftMode::Approx,
         },
         lut_resolution: b.u32() % 1100,
+        clusters: b.u8() % 2 == 0,
     };
     let mut scene = square();
     match b.u8() % 4 {
