@@ -1,14 +1,21 @@
-//! Shading: turns view samples and per-light visibility into a picture.
-//! Deliberately simple (grey Lambert plus ambient): the engine's product is
-//! the visibility, and the picture is there to be looked at.
+//! Shading: turns view samples and per-light visibility into a picture:
+//! Lambert with coherent shading normals (paper §4.3, [`normals`]) and the
+//! materials' base colours (factor × texture), plus ambient. The engine's
+//! product is the visibility; the picture is there to be looked at.
 
-use glam::DVec3;
+pub mod normals;
+
+use glam::{DVec2, DVec3};
+use rayon::prelude::*;
 
 use crate::light::{Light, LightShape};
 use crate::oracle::ViewSamples;
+use crate::scene::{Material, Scene};
+pub use normals::ShadingNormals;
 
 /// Ambient term so that fully shadowed surfaces are still readable.
 const AMBIENT: f64 = 0.12;
+/// Albedo of surfaces without a material.
 const ALBEDO: f64 = 0.8;
 
 fn to_srgb8(linear: f64) -> u8 {
@@ -21,44 +28,202 @@ fn to_srgb8(linear: f64) -> u8 {
     (s * 255.0 + 0.5) as u8
 }
 
-/// Shades every pixel: `visibility[k][pixel]` is light `k`'s visible fraction.
-pub fn shade(view: &ViewSamples, lights: &[Light], visibility: &[Vec<f32>]) -> image::RgbImage {
-    let (w, h) = (view.width, view.height);
-    let mut img = image::RgbImage::new(w, h);
-    for y in 0..h {
-        for x in 0..w {
-            let i = (y * w + x) as usize;
-            let rgb = match &view.samples[i] {
-                None => {
-                    // A plain vertical gradient for the background.
-                    let t = y as f64 / h.max(1) as f64;
-                    let c = 0.35 + 0.25 * (1.0 - t);
-                    [c * 0.8, c * 0.9, c]
-                }
-                Some(s) => {
-                    let mut c = [AMBIENT * ALBEDO; 3];
-                    for (k, light) in lights.iter().enumerate() {
-                        let to_light = match &light.shape {
-                            LightShape::Directional { direction } => -*direction,
-                            _ => light.center().unwrap_or(s.position) - s.position,
-                        };
-                        let l = to_light.normalize_or_zero();
-                        let ndotl = s.normal.dot(l).max(0.0);
-                        let v = visibility
-                            .get(k)
-                            .and_then(|v| v.get(i))
-                            .copied()
-                            .unwrap_or(0.0) as f64;
-                        for (ch, lc) in c.iter_mut().zip(light.color) {
-                            *ch += ALBEDO * ndotl * v * lc as f64 * light.intensity as f64;
-                        }
-                    }
-                    c
-                }
-            };
-            img.put_pixel(x, y, image::Rgb(rgb.map(to_srgb8)));
+/// sRGB 8-bit to linear, as a table (texture look-ups need four texels
+/// of three channels per pixel).
+fn from_srgb8(v: u8) -> f64 {
+    static TABLE: std::sync::OnceLock<[f64; 256]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        std::array::from_fn(|i| {
+            let c = i as f64 / 255.0;
+            if c <= 0.04045 {
+                c / 12.92
+            } else {
+                ((c + 0.055) / 1.055).powf(2.4)
+            }
+        })
+    })[v as usize]
+}
+
+/// Per triangle (in [`Scene::triangles`] order): its material and corner
+/// texture coordinates, for the base colour.
+struct Surfaces<'a> {
+    materials: &'a [Material],
+    material: Vec<Option<u32>>,
+    uvs: Vec<Option<[DVec2; 3]>>,
+}
+
+impl<'a> Surfaces<'a> {
+    fn new(scene: &'a Scene) -> Self {
+        let (mut material, mut uvs) = (Vec::new(), Vec::new());
+        for mesh in &scene.meshes {
+            for tri in &mesh.indices {
+                material.push(mesh.material.map(|m| m as u32));
+                uvs.push(mesh.uvs.as_ref().map(|uv| tri.map(|v| uv[v as usize])));
+            }
+        }
+        Surfaces {
+            materials: &scene.materials,
+            material,
+            uvs,
         }
     }
+
+    /// Linear RGB base colour at barycentrics `bary` of triangle `t`:
+    /// `baseColorFactor` × the base-colour texture (bilinear, repeating,
+    /// sRGB decoded; glTF's UV origin is the image's top-left); grey
+    /// without a material.
+    fn albedo(&self, t: usize, bary: DVec3) -> [f64; 3] {
+        let Some(m) = self.material[t].and_then(|m| self.materials.get(m as usize)) else {
+            return [ALBEDO; 3];
+        };
+        let f = m.base_color_factor;
+        let mut rgb = [f[0] as f64, f[1] as f64, f[2] as f64];
+        let image = m
+            .base_color_texture
+            .as_ref()
+            .and_then(|tex| tex.image.as_ref());
+        if let (Some(image), Some(uv)) = (image, self.uvs[t]) {
+            let uv = uv[0] * bary.x + uv[1] * bary.y + uv[2] * bary.z;
+            let texel = bilinear(image, uv);
+            for (c, t) in rgb.iter_mut().zip(texel) {
+                *c *= t;
+            }
+        }
+        rgb
+    }
+}
+
+/// Bilinear, repeating look-up of `image` at `uv` (linear RGB).
+fn bilinear(image: &image::RgbaImage, uv: DVec2) -> [f64; 3] {
+    let (w, h) = (image.width().max(1) as i64, image.height().max(1) as i64);
+    let x = uv.x * w as f64 - 0.5;
+    let y = uv.y * h as f64 - 0.5;
+    if !(x.is_finite() && y.is_finite()) || image.width() == 0 || image.height() == 0 {
+        return [1.0; 3];
+    }
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let texel = |dx: i64, dy: i64| {
+        let px = (x0 as i64 + dx).rem_euclid(w) as u32;
+        let py = (y0 as i64 + dy).rem_euclid(h) as u32;
+        let p = image.get_pixel(px, py).0;
+        [from_srgb8(p[0]), from_srgb8(p[1]), from_srgb8(p[2])]
+    };
+    let (a, b, c, d) = (texel(0, 0), texel(1, 0), texel(0, 1), texel(1, 1));
+    std::array::from_fn(|i| {
+        let top = a[i] + (b[i] - a[i]) * fx;
+        let bottom = c[i] + (d[i] - c[i]) * fx;
+        top + (bottom - top) * fy
+    })
+}
+
+/// What a mesh's shading normals depend on: positions, triangles, normals.
+type MeshGeometry = (Vec<DVec3>, Vec<[u32; 3]>, Option<Vec<DVec3>>);
+
+/// [`ShadingNormals`] kept across frames: made again only when the
+/// scene's geometry (positions, triangles, normals) differs from the last
+/// frame's, which a comparison tells (no hashing).
+#[derive(Default)]
+pub struct ShadingCache {
+    geometry: Vec<MeshGeometry>,
+    normals: ShadingNormals,
+}
+
+impl ShadingCache {
+    /// The shading normals of `scene`, and whether they were reused.
+    pub fn get(&mut self, scene: &Scene) -> (&ShadingNormals, bool) {
+        let same = self.geometry.len() == scene.meshes.len()
+            && self
+                .geometry
+                .iter()
+                .zip(&scene.meshes)
+                .all(|(g, m)| g.0 == m.positions && g.1 == m.indices && g.2 == m.normals);
+        if !same {
+            self.normals = ShadingNormals::new(scene);
+            self.geometry = scene
+                .meshes
+                .iter()
+                .map(|m| (m.positions.clone(), m.indices.clone(), m.normals.clone()))
+                .collect();
+        }
+        (&self.normals, same)
+    }
+}
+
+/// The unit direction from `p` towards `light` (its centre; against the
+/// direction of a directional light).
+fn to_light(light: &Light, p: DVec3) -> DVec3 {
+    match &light.shape {
+        LightShape::Directional { direction } => -direction.normalize_or_zero(),
+        _ => (light.center().unwrap_or(p) - p).normalize_or_zero(),
+    }
+}
+
+/// Shades every pixel: `visibility[k][pixel]` is light `k`'s visible
+/// fraction. Samples on a scene triangle get coherent shading normals
+/// (`normals`, made from `scene`) and their material's colour; others
+/// (user samples) their own normal, grey.
+pub fn shade(
+    scene: &Scene,
+    normals: &ShadingNormals,
+    view: &ViewSamples,
+    lights: &[Light],
+    visibility: &[Vec<f32>],
+) -> image::RgbImage {
+    let (w, h) = (view.width, view.height);
+    let surfaces = Surfaces::new(scene);
+    let mut img = image::RgbImage::new(w, h);
+    let row_bytes = 3 * w as usize;
+    img.par_chunks_mut(row_bytes.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            for x in 0..w as usize {
+                let i = y * w as usize + x;
+                let rgb = match &view.samples[i] {
+                    None => {
+                        // A plain vertical gradient for the background.
+                        let t = y as f64 / h.max(1) as f64;
+                        let c = 0.35 + 0.25 * (1.0 - t);
+                        [c * 0.8, c * 0.9, c]
+                    }
+                    Some(s) => {
+                        let t = s.triangle as usize;
+                        let on_mesh = t < normals.triangle_count();
+                        let bary = if on_mesh {
+                            normals.barycentrics(t, s.position)
+                        } else {
+                            DVec3::ZERO
+                        };
+                        let albedo = if on_mesh {
+                            surfaces.albedo(t, bary)
+                        } else {
+                            [ALBEDO; 3]
+                        };
+                        let mut c = albedo.map(|a| AMBIENT * a);
+                        for (k, light) in lights.iter().enumerate() {
+                            let v = visibility
+                                .get(k)
+                                .and_then(|v| v.get(i))
+                                .copied()
+                                .unwrap_or(0.0) as f64;
+                            if v == 0.0 {
+                                continue;
+                            }
+                            let lambert = if on_mesh {
+                                normals.lambert(t, bary, s.normal, |p| to_light(light, p))
+                            } else {
+                                s.normal.dot(to_light(light, s.position)).max(0.0)
+                            };
+                            for ((ch, lc), a) in c.iter_mut().zip(light.color).zip(albedo) {
+                                *ch += a * lambert * v * lc as f64 * light.intensity as f64;
+                            }
+                        }
+                        c
+                    }
+                };
+                row[3 * x..3 * x + 3].copy_from_slice(&rgb.map(to_srgb8));
+            }
+        });
     img
 }
 

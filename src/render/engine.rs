@@ -16,6 +16,7 @@ use crate::light::Light;
 use crate::oracle::ViewSample;
 use crate::scene::file::ShadowSettings;
 use crate::scene::Scene;
+use crate::shade::ShadingCache;
 use crate::stats::ShadowStats;
 use crate::vulkan::{ContextOptions, ExternalDevice, GpuContext, GrowBuffer};
 use crate::{Error, Result};
@@ -28,6 +29,8 @@ pub struct Engine {
     pub(super) shadows: ShadowPipeline,
     /// The scene's triangles of the last frame.
     pub(super) triangles: GrowBuffer,
+    /// The shading normals of the last frame's scene.
+    pub(super) shading: ShadingCache,
 }
 
 /// Hard-shadow visibility of a set of view samples for one light.
@@ -79,6 +82,7 @@ impl Engine {
             view,
             shadows,
             triangles: GrowBuffer::storage("triangles"),
+            shading: ShadingCache::default(),
         })
     }
 

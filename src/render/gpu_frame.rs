@@ -68,7 +68,8 @@ impl Engine {
         let visibility: Vec<Vec<f32>> = lights.iter().map(|l| l.visibility.clone()).collect();
         let evaluated: Vec<Vec<bool>> = lights.iter().map(|l| l.evaluated.clone()).collect();
         let t = Instant::now();
-        let image = shade(&view, &desc.lights, &visibility);
+        let (normals, _) = self.shading.get(&desc.scene);
+        let image = shade(&desc.scene, normals, &view, &desc.lights, &visibility);
         let shade_ms = t.elapsed().as_secs_f64() * 1e3;
         let stats = Stats::Gpu(FrameStats {
             device: self.ctx.info().name.clone(),

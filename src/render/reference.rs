@@ -54,7 +54,8 @@ pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Resul
         light_samples.push(samples);
     }
     let t2 = Instant::now();
-    let image = shade(&view, &desc.lights, &visibility);
+    let normals = crate::shade::ShadingNormals::new(&desc.scene);
+    let image = shade(&desc.scene, &normals, &view, &desc.lights, &visibility);
     let shade_ms = t2.elapsed().as_secs_f64() * 1e3;
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
     let shadow_rays = oracle.shadow_rays_cast();

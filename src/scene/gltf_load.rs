@@ -791,6 +791,7 @@ impl<'a> Loader<'a> {
         }
 
         let uvs = self.read_uvs(prim, n)?;
+        let normals = self.read_normals(prim, n)?;
 
         let material = match prim.material {
             Some(m) if m.value() < materials.len() => Some(m.value()),
@@ -802,6 +803,7 @@ impl<'a> Loader<'a> {
             name: name.to_string(),
             positions,
             uvs,
+            normals,
             indices: triangles,
             material,
             closed: false,
@@ -874,6 +876,45 @@ impl<'a> Loader<'a> {
             positions.push(v);
         }
         Ok(positions)
+    }
+
+    /// A primitive's NORMAL attribute, when present: VEC3, one per vertex
+    /// (`n`). For shading only: a non-finite or zero normal is a warning
+    /// and the mesh's normals are dropped (the shading generates them).
+    fn read_normals(&mut self, prim: &json::mesh::Primitive, n: usize) -> R<Option<Vec<DVec3>>> {
+        use json::mesh::Semantic;
+        let Some(na) = prim.attributes.get(&Checked::Valid(Semantic::Normals)) else {
+            return Ok(None);
+        };
+        let acc = self
+            .read_accessor(na.value())
+            .map_err(|e| format!("NORMAL: {e}"))?;
+        if acc.components != 3 || acc.count() != n {
+            return Err(format!(
+                "NORMAL accessor {} must be VEC3 with one element per vertex ({n}); it has {} \
+                 components and {} elements",
+                na.value(),
+                acc.components,
+                acc.count()
+            ));
+        }
+        let normals: Vec<DVec3> = acc
+            .values
+            .chunks_exact(3)
+            .map(|v| DVec3::new(v[0], v[1], v[2]))
+            .collect();
+        if let Some(k) = normals
+            .iter()
+            .position(|v| !v.is_finite() || v.length_squared() == 0.0)
+        {
+            self.warn(format!(
+                "NORMAL accessor {}: normal {k} is zero or not finite; shading normals are \
+                 generated instead",
+                na.value()
+            ));
+            return Ok(None);
+        }
+        Ok(Some(normals))
     }
 
     /// A primitive's TEXCOORD_0 attribute, when present: VEC2, one per

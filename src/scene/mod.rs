@@ -75,6 +75,9 @@ pub struct Mesh {
     pub positions: Vec<DVec3>,
     /// Texture coordinates, one per position, when the source has them.
     pub uvs: Option<Vec<DVec2>>,
+    /// World-space unit vertex normals, one per position, when the source
+    /// has them (glTF `NORMAL`); for shading only ([`crate::shade`]).
+    pub normals: Option<Vec<DVec3>>,
     /// Triangles as indices into `positions`, counter-clockwise = front.
     pub indices: Vec<[u32; 3]>,
     /// Index into [`Scene::materials`].
@@ -107,6 +110,7 @@ impl Mesh {
             name: name.into(),
             positions,
             uvs: None,
+            normals: None,
             indices,
             material: None,
             closed,
@@ -128,6 +132,13 @@ impl Mesh {
     pub fn transform(&mut self, m: &glam::DMat4) {
         for p in &mut self.positions {
             *p = m.transform_point3(*p);
+        }
+        if let Some(normals) = &mut self.normals {
+            // Normals go with the inverse transpose (zero where singular).
+            let inverse_transpose = glam::DMat3::from_mat4(*m).inverse().transpose();
+            for n in normals {
+                *n = (inverse_transpose * *n).normalize_or_zero();
+            }
         }
         if m.determinant() < 0.0 {
             for t in &mut self.indices {
