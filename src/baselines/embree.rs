@@ -285,6 +285,8 @@ pub struct EmbreeShadows {
     /// Per view sample, its visible light samples: `mask_words` words, bit
     /// `j % 32` of word `j / 32` for light sample `j`.
     pub visible: Vec<u32>,
+    /// Words per view sample in `visible` (a whole number of 32-sample
+    /// words covering the light's samples).
     pub mask_words: usize,
     /// Rays cast (pairs the normal rule leaves).
     pub rays: u64,
@@ -400,7 +402,7 @@ pub fn default_offset(diagonal: f32, scale: f32) -> f32 {
 /// [`shadow_rays`] for the engine's inputs: `scene` (committed once, see
 /// [`EmbreeScene::from_scene`]), world-space view samples made relative to
 /// `eye` as the engine makes them, and a point light or a light with
-/// extent (every one of its [`Light::light_samples`]).
+/// extent (every one of its [`Light::light_samples`](crate::light::Light::light_samples)).
 pub fn light_shadows(
     embree: &EmbreeScene,
     scene: &crate::scene::Scene,
