@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use crate::light::{Light, LightShape};
 use crate::oracle::ViewSamples;
-use crate::scene::{Material, Scene};
+use crate::scene::Scene;
 pub use normals::ShadingNormals;
 
 /// Ambient term so that fully shadowed surfaces are still readable.
@@ -44,28 +44,26 @@ fn from_srgb8(v: u8) -> f64 {
     })[v as usize]
 }
 
-/// Per triangle (in [`Scene::triangles`] order): its material and corner
-/// texture coordinates, for the base colour.
+/// The materials of a scene's triangles (in [`Scene::triangles`] order),
+/// read from the meshes themselves: no per-frame copy.
 struct Surfaces<'a> {
-    materials: &'a [Material],
-    material: Vec<Option<u32>>,
-    uvs: Vec<Option<[DVec2; 3]>>,
+    scene: &'a Scene,
+    /// Global id of each mesh's first triangle.
+    first: Vec<usize>,
 }
 
 impl<'a> Surfaces<'a> {
     fn new(scene: &'a Scene) -> Self {
-        let (mut material, mut uvs) = (Vec::new(), Vec::new());
-        for mesh in &scene.meshes {
-            for tri in &mesh.indices {
-                material.push(mesh.material.map(|m| m as u32));
-                uvs.push(mesh.uvs.as_ref().map(|uv| tri.map(|v| uv[v as usize])));
-            }
-        }
-        Surfaces {
-            materials: &scene.materials,
-            material,
-            uvs,
-        }
+        let first = scene
+            .meshes
+            .iter()
+            .scan(0, |next, m| {
+                let here = *next;
+                *next += m.indices.len();
+                Some(here)
+            })
+            .collect();
+        Surfaces { scene, first }
     }
 
     /// Linear RGB base colour at barycentrics `bary` of triangle `t`:
@@ -73,18 +71,20 @@ impl<'a> Surfaces<'a> {
     /// sRGB decoded; glTF's UV origin is the image's top-left); grey
     /// without a material.
     fn albedo(&self, t: usize, bary: DVec3) -> [f64; 3] {
-        let Some(m) = self.material[t].and_then(|m| self.materials.get(m as usize)) else {
+        let m = self.first.partition_point(|&f| f <= t) - 1;
+        let mesh = &self.scene.meshes[m];
+        let Some(material) = mesh.material.and_then(|i| self.scene.materials.get(i)) else {
             return [ALBEDO; 3];
         };
-        let f = m.base_color_factor;
+        let f = material.base_color_factor;
         let mut rgb = [f[0] as f64, f[1] as f64, f[2] as f64];
-        let image = m
+        let image = material
             .base_color_texture
             .as_ref()
             .and_then(|tex| tex.image.as_ref());
-        if let (Some(image), Some(uv)) = (image, self.uvs[t]) {
-            let uv = uv[0] * bary.x + uv[1] * bary.y + uv[2] * bary.z;
-            let texel = bilinear(image, uv);
+        if let (Some(image), Some(uvs)) = (image, &mesh.uvs) {
+            let [a, b, c] = mesh.indices[t - self.first[m]].map(|v| uvs[v as usize]);
+            let texel = bilinear(image, a * bary.x + b * bary.y + c * bary.z);
             for (c, t) in rgb.iter_mut().zip(texel) {
                 *c *= t;
             }

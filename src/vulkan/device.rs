@@ -133,17 +133,9 @@ pub struct DeviceInfo {
     pub timestamp_valid_bits: u32,
     /// Memory heaps.
     pub memory_heaps: Vec<MemoryHeapInfo>,
-    /// `shaderInt64`.
-    pub shader_int64: bool,
-    /// `shaderBufferInt64Atomics` (Vulkan 1.2).
-    pub shader_buffer_int64_atomics: bool,
-    /// `shaderSharedInt64Atomics` (Vulkan 1.2).
-    pub shader_shared_int64_atomics: bool,
-    /// `shaderStorageImageReadWithoutFormat` (false on lavapipe: `imageLoad`
-    /// then needs a format qualifier).
-    pub storage_image_read_without_format: bool,
-    /// `shaderStorageImageWriteWithoutFormat`.
-    pub storage_image_write_without_format: bool,
+    /// The optional features the device supports (on a caller's device:
+    /// those it supports and the caller enabled).
+    pub features: DeviceFeatures,
 }
 
 impl DeviceInfo {
@@ -235,13 +227,17 @@ impl DeviceInfo {
                     device_local: h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL),
                 })
                 .collect(),
-            shader_int64: features.shader_int64 == vk::TRUE,
-            shader_buffer_int64_atomics: features12.shader_buffer_int64_atomics == vk::TRUE,
-            shader_shared_int64_atomics: features12.shader_shared_int64_atomics == vk::TRUE,
-            storage_image_read_without_format: features.shader_storage_image_read_without_format
-                == vk::TRUE,
-            storage_image_write_without_format: features.shader_storage_image_write_without_format
-                == vk::TRUE,
+            features: DeviceFeatures {
+                shader_int64: features.shader_int64 == vk::TRUE,
+                shader_buffer_int64_atomics: features12.shader_buffer_int64_atomics == vk::TRUE,
+                shader_shared_int64_atomics: features12.shader_shared_int64_atomics == vk::TRUE,
+                storage_image_read_without_format: features
+                    .shader_storage_image_read_without_format
+                    == vk::TRUE,
+                storage_image_write_without_format: features
+                    .shader_storage_image_write_without_format
+                    == vk::TRUE,
+            },
         }
     }
 }
@@ -356,16 +352,17 @@ impl fmt::Display for DeviceInfo {
                 "shaderInt64 / int64 atomics (buffer, shared)",
                 format!(
                     "{} / {}, {}",
-                    self.shader_int64,
-                    self.shader_buffer_int64_atomics,
-                    self.shader_shared_int64_atomics
+                    self.features.shader_int64,
+                    self.features.shader_buffer_int64_atomics,
+                    self.features.shader_shared_int64_atomics
                 ),
             ),
             (
                 "storage image read/write without format",
                 format!(
                     "{} / {}",
-                    self.storage_image_read_without_format, self.storage_image_write_without_format
+                    self.features.storage_image_read_without_format,
+                    self.features.storage_image_write_without_format
                 ),
             ),
         ];
@@ -653,9 +650,7 @@ impl Device {
         info.compute_queue_family = Some(queue_family);
         info.timestamp_valid_bits = family.timestamp_valid_bits;
         // The passes use only what the caller enabled.
-        let supported = DeviceFeatures::of(&info);
-        let used = supported.and(enabled);
-        used.apply_to(&mut info);
+        info.features = info.features.and(enabled);
         let allocator = match allocator {
             Some(shared) => shared,
             None => Arc::new(Mutex::new(new_allocator(
@@ -834,17 +829,6 @@ pub struct DeviceFeatures {
 }
 
 impl DeviceFeatures {
-    /// What the device supports.
-    fn of(info: &DeviceInfo) -> Self {
-        DeviceFeatures {
-            shader_int64: info.shader_int64,
-            shader_buffer_int64_atomics: info.shader_buffer_int64_atomics,
-            shader_shared_int64_atomics: info.shader_shared_int64_atomics,
-            storage_image_read_without_format: info.storage_image_read_without_format,
-            storage_image_write_without_format: info.storage_image_write_without_format,
-        }
-    }
-
     /// Features in both.
     fn and(self, o: Self) -> Self {
         DeviceFeatures {
@@ -858,14 +842,6 @@ impl DeviceFeatures {
             storage_image_write_without_format: self.storage_image_write_without_format
                 && o.storage_image_write_without_format,
         }
-    }
-
-    fn apply_to(self, info: &mut DeviceInfo) {
-        info.shader_int64 = self.shader_int64;
-        info.shader_buffer_int64_atomics = self.shader_buffer_int64_atomics;
-        info.shader_shared_int64_atomics = self.shader_shared_int64_atomics;
-        info.storage_image_read_without_format = self.storage_image_read_without_format;
-        info.storage_image_write_without_format = self.storage_image_write_without_format;
     }
 }
 
@@ -915,7 +891,7 @@ impl DeviceRequirements {
             api_version: vk::API_VERSION_1_2,
             extensions: Vec::new(),
             queue_flags: vk::QueueFlags::COMPUTE,
-            features: DeviceFeatures::of(info),
+            features: info.features,
         }
     }
 
