@@ -20,11 +20,18 @@
 #define CLUSTER_KEEP 0u
 #define CLUSTER_LIGHT_SIDE 1u
 #define CLUSTER_BEHIND_CLOSED 2u
+#define CLUSTER_OUTSIDE_PENUMBRA 3u
+// 64 f32 ulps: the rounding bound of a per-sample plane test, per unit of
+// the magnitudes it involves (as ROUNDING_BOUND in soft_occlusion.comp).
+#define CLUSTER_ROUNDING (64.0 * 1.1920929e-7)
 
 // A caster's supporting plane as the rules see it.
 struct ClusterPlane {
     vec3 n;      // unit normal of cross(b - a, c - a)
-    vec3 a;      // its first vertex, camera-relative
+    vec3 a;      // its vertices, camera-relative
+    vec3 b;
+    vec3 c;
+    float area2; // |cross(b - a, c - a)|
     float side;  // the light's side of the plane: +1, -1, or 0 (the light straddles it: no light-side rule)
     bool closed;
 };
@@ -38,6 +45,9 @@ ClusterPlane cluster_plane(vec3 a, vec3 b, vec3 c, bool closed) {
     float len = length(n);
     cp.n = n / len;
     cp.a = a;
+    cp.b = b;
+    cp.c = c;
+    cp.area2 = len;
     cp.closed = closed;
     cp.side = 0.0;
     if (!(len > 0.0) || isinf(len) || any(isnan(cp.n))) {
@@ -72,6 +82,95 @@ ClusterPlane triangle_cluster_plane(usamplerBuffer triangles, uint i) {
 // [lo, hi]: every sample on the light's side of its plane (its segments to
 // the light never cross it), or, soft shadows, behind a closed caster
 // (occlusion's back-face rule).
+// 16 f32 ulps: the rounding bound of a cross product or determinant of
+// differences that are each rounded once relative to themselves (a - x,
+// b - x), per unit of the product of their lengths.
+#define CLUSTER_CROSS_ROUNDING (16.0 * 1.1920929e-7)
+
+// The lower and upper bounds of dot(g, x - p) over the box (bc, bh).
+vec2 box_range(vec3 g, vec3 p, vec3 bc, vec3 bh) {
+    float c = dot(g, bc - p), r = dot(abs(g), bh);
+    return vec2(c - r, c + r);
+}
+
+// Soft occlusion's early out for edge (p, q) of a caster whose third
+// vertex is r, for every point x of the box (bc, bh): whether the plane
+// through x and the edge leaves the sphere (o, rr) wholly outside the
+// caster's cone from x (bit 0, the planes oriented as they truly are) or
+// wholly inside it (bit 1, the three planes' orientation flipped). Seen
+// along the edge, that plane is the line through the edge and x: it
+// misses the sphere's disk where x is in one of the two wedges between
+// the disk's tangents through the edge (planes A and B), and the disk is
+// on r's side or not by x's side of the caster's plane (P).
+uint edge_rule(vec3 p, vec3 q, vec3 r, vec3 o, float rr, vec3 bc, vec3 bh, float m) {
+    vec3 d = q - p;
+    float dd = dot(d, d);
+    vec3 w = o - p;
+    vec3 wp = w - d * (dot(w, d) / dd);
+    float h = length(wp);
+    if (!(h > rr) || !(dd > 0.0)) {
+        return 0u; // the sphere reaches the edge's line: every plane through it cuts the sphere
+    }
+    vec3 e1 = wp / h;
+    vec3 e2 = normalize(cross(d, e1));
+    float sa = rr / h, ca = sqrt(max(0.0, 1.0 - sa * sa));
+    vec3 rp = r - p;
+    float ru = dot(rp, e1), rw = dot(rp, e2);
+    vec3 g_p = rw * e1 - ru * e2;
+    vec2 ra = box_range(ca * e2 - sa * e1, p, bc, bh);
+    vec2 rb = box_range(ca * e2 + sa * e1, p, bc, bh);
+    vec2 rpl = box_range(g_p, p, bc, bh);
+    float mp = m * length(g_p);
+    bool upper = ra.x >= m && rb.x >= m, lower = ra.y <= -m && rb.y <= -m;
+    bool pos = rpl.x >= mp, neg = rpl.y <= -mp;
+    uint outside = (upper && pos) || (lower && neg) ? 1u : 0u;
+    uint inside = (upper && neg) || (lower && pos) ? 2u : 0u;
+    return outside | inside;
+}
+
+// Whether the caster of `cp` blocks no light sample of any point of the
+// box (centre bc, half extent bh) by soft occlusion's own early out: one
+// edge's plane through x leaves the whole light outside the caster's
+// cone from x (edge_rule), for a sphere grown by what that test lets
+// through (1e-5 of the radius and of the distance: lo_x) and by its
+// rounding. Its plane through x and an edge comes from cross(a - x, b - x)
+// and errs in direction by about CLUSTER_CROSS_ROUNDING |a - x| |b - x| /
+// (|b - a| times x's distance to the edge's line). The three planes'
+// orientation is the sign of det(a - x, b - x, c - x), sure only where
+// area2 times x's distance to the caster's plane passes that
+// determinant's rounding; elsewhere the box is dropped only when either
+// orientation rejects it.
+bool outside_penumbra(ClusterPlane cp, vec3 bc, vec3 bh, float m) {
+    vec3 o = pc.origin.xyz;
+    float r_light = pc.soft_light.x;
+    float ext = length(bh);
+    float da = length(cp.a - bc) + ext, db = length(cp.b - bc) + ext, dc = length(cp.c - bc) + ext;
+    float lab = length(cp.b - cp.a), lbc = length(cp.c - cp.b), lca = length(cp.a - cp.c);
+    // The box's distance to the plane, less the rounded unit normal's error.
+    float plane_dist = abs(dot(cp.n, bc - cp.a)) - dot(abs(cp.n), bh)
+        - CLUSTER_ROUNDING * (1.0 + lab * lca / cp.area2) * da;
+    bool sure = plane_dist > 0.0 && cp.area2 * plane_dist > CLUSTER_CROSS_ROUNDING * da * db * dc;
+    float reach = length(bc - o) + ext;
+    float grow = r_light * (1.0 + 1e-5) + 1e-5 * reach + CLUSTER_ROUNDING * (reach + r_light);
+    float k = CLUSTER_CROSS_ROUNDING * reach;
+    uint rules = 0u;
+    // Each edge: (p, q, third vertex), the box's distance to its line.
+    for (int i = 0; i < 3; i++) {
+        vec3 p = i == 0 ? cp.a : (i == 1 ? cp.b : cp.c);
+        vec3 q = i == 0 ? cp.b : (i == 1 ? cp.c : cp.a);
+        vec3 r = i == 0 ? cp.c : (i == 1 ? cp.a : cp.b);
+        float dp = i == 0 ? da : (i == 1 ? db : dc);
+        float dq = i == 0 ? db : (i == 1 ? dc : da);
+        float len = i == 0 ? lab : (i == 1 ? lbc : lca);
+        vec3 v = bc - p, e = q - p;
+        float line_dist = length(v - e * (dot(v, e) / dot(e, e))) - ext;
+        if (line_dist > 0.0) {
+            rules |= edge_rule(p, q, r, o, grow + k * dp * dq / (len * line_dist), bc, bh, m);
+        }
+    }
+    return (rules & 1u) != 0u && (sure || (rules & 2u) != 0u);
+}
+
 uint cull_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
     if (cp.n == vec3(0.0)) {
         return CLUSTER_KEEP;
@@ -88,7 +187,11 @@ uint cull_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
     if (is_soft() && cp.closed && dc + r <= -m) {
         return CLUSTER_BEHIND_CLOSED;
     }
+    if (is_soft() && outside_penumbra(cp, c, h, m)) {
+        return CLUSTER_OUTSIDE_PENUMBRA;
+    }
     return CLUSTER_KEEP;
 }
+
 
 #endif

@@ -61,6 +61,10 @@ pub struct ShadowStats {
     pub bins_dropped_light_side: u32,
     /// The same, every sample behind a closed caster (soft shadows).
     pub bins_dropped_behind_closed: u32,
+    /// The same, the tile's box outside the caster's penumbra volume (soft
+    /// shadows: one edge's plane through any sample of the box leaves the
+    /// whole light outside the caster's cone).
+    pub bins_dropped_outside_penumbra: u32,
     /// Soft occlusion: (pair, chunk of 64 samples) visits that the chunk's
     /// own box (the same rules) or texels ruled out before the loop.
     pub chunk_pairs_dropped: u32,
@@ -156,6 +160,7 @@ impl ShadowStats {
             view_sample_triangle_tests: c[counter::TESTS],
             bins_dropped_light_side: c[counter::CLUSTER_LIGHT_SIDE],
             bins_dropped_behind_closed: c[counter::CLUSTER_BEHIND_CLOSED],
+            bins_dropped_outside_penumbra: c[counter::CLUSTER_OUTSIDE_PENUMBRA],
             chunk_pairs_dropped: c[counter::CLUSTER_CHUNK],
             gpu_buffer_bytes: out.buffer_bytes,
             allocations: out.allocations,

@@ -44,7 +44,8 @@ fn soft_lights(desc: &SceneDescription) -> Vec<(&'static str, Light)> {
 #[test]
 fn clusters_change_no_result() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
-    let (mut light_side, mut behind_closed, mut chunk, mut cases) = (0u64, 0u64, 0u64, 0);
+    let (mut light_side, mut behind_closed, mut penumbra, mut chunk, mut cases) =
+        (0u64, 0u64, 0u64, 0u64, 0);
     for spec in [
         "builtin:demo",
         "builtin:plane_sphere",
@@ -111,20 +112,22 @@ fn clusters_change_no_result() {
                     (
                         without.stats.bins_dropped_light_side,
                         without.stats.bins_dropped_behind_closed,
+                        without.stats.bins_dropped_outside_penumbra,
                         without.stats.chunk_pairs_dropped
                     ),
-                    (0, 0, 0),
+                    (0, 0, 0, 0),
                     "off drops nothing"
                 );
-                let (a, b) = (
+                let (a, b, p) = (
                     with.stats.bins_dropped_light_side as u64,
                     with.stats.bins_dropped_behind_closed as u64,
+                    with.stats.bins_dropped_outside_penumbra as u64,
                 );
                 // (The tests count only pairs past occlusion's own early
                 // outs, and depends on the order of a tile's pairs where a
                 // full mask stops early: printed, not compared.)
                 eprintln!(
-                    "{spec}, {name}, {mode:?}: tests {} -> {}; bins dropped {a} (light side) + {b} (behind closed); chunk visits dropped {}",
+                    "{spec}, {name}, {mode:?}: tests {} -> {}; bins dropped {a} (light side) + {b} (behind closed) + {p} (outside penumbra); chunk visits dropped {}",
                     without.stats.view_sample_triangle_tests,
                     with.stats.view_sample_triangle_tests,
                     with.stats.chunk_pairs_dropped,
@@ -132,15 +135,16 @@ fn clusters_change_no_result() {
                 chunk += with.stats.chunk_pairs_dropped as u64;
                 light_side += a;
                 behind_closed += b;
+                penumbra += p;
                 cases += 1;
             }
         }
     }
     eprintln!(
-        "{cases} cases; bins dropped: {light_side} light side, {behind_closed} behind closed; chunk visits dropped: {chunk}"
+        "{cases} cases; bins dropped: {light_side} light side, {behind_closed} behind closed, {penumbra} outside penumbra; chunk visits dropped: {chunk}"
     );
     assert!(
-        light_side > 0 && behind_closed > 0 && chunk > 0,
+        light_side > 0 && behind_closed > 0 && penumbra > 0 && chunk > 0,
         "every rule exercised"
     );
     engine.context().check_validation().unwrap();

@@ -183,9 +183,13 @@ pub mod counter {
     /// Soft occlusion: (pair, chunk of 64 samples) visits that the chunk's
     /// own box or texels ruled out.
     pub const CLUSTER_CHUNK: usize = 14;
+    /// The same, because the tile's box lies outside the caster's penumbra
+    /// volume: one edge's plane through any of its samples leaves the whole
+    /// light outside the caster's cone (soft).
+    pub const CLUSTER_OUTSIDE_PENUMBRA: usize = 15;
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.
-    pub const COUNT: usize = 15;
+    pub const COUNT: usize = 16;
 }
 
 /// `LightPush`: push constants of every shadow pass of a light, hard and soft.
