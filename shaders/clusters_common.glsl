@@ -78,10 +78,6 @@ ClusterPlane triangle_cluster_plane(usamplerBuffer triangles, uint i) {
     return cluster_plane(a, b, c, (t0.w & TRIANGLE_CLOSED) != 0u);
 }
 
-// Which rule (if any) drops the caster for every sample of the box
-// [lo, hi]: every sample on the light's side of its plane (its segments to
-// the light never cross it), or, soft shadows, behind a closed caster
-// (occlusion's back-face rule).
 // 16 f32 ulps: the rounding bound of a cross product or determinant of
 // differences that are each rounded once relative to themselves (a - x,
 // b - x), per unit of the product of their lengths.
@@ -171,6 +167,18 @@ bool outside_penumbra(ClusterPlane cp, vec3 bc, vec3 bh, float m) {
     return (rules & 1u) != 0u && (sure || (rules & 2u) != 0u);
 }
 
+// The rules' margin for the box [lo, hi]: CLUSTER_MARGIN of the
+// magnitudes involved.
+float cluster_margin(ClusterPlane cp, vec3 lo, vec3 hi) {
+    float r_light = is_soft() ? pc.soft_light.x : 0.0;
+    float scale = length(cp.a) + length(pc.origin.xyz) + r_light + length(max(abs(lo), abs(hi)));
+    return CLUSTER_MARGIN * scale;
+}
+
+// Which rule (if any) drops the caster for every sample of the box
+// [lo, hi]: every sample on the light's side of its plane (its segments to
+// the light never cross it), or, soft shadows, behind a closed caster
+// (occlusion's back-face rule).
 uint cull_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
     if (cp.n == vec3(0.0)) {
         return CLUSTER_KEEP;
@@ -178,19 +186,28 @@ uint cull_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
     vec3 c = 0.5 * (lo + hi), h = 0.5 * (hi - lo);
     float dc = dot(cp.n, c - cp.a);
     float r = dot(abs(cp.n), h);
-    float r_light = is_soft() ? pc.soft_light.x : 0.0;
-    float scale = length(cp.a) + length(pc.origin.xyz) + r_light + length(max(abs(lo), abs(hi)));
-    float m = CLUSTER_MARGIN * scale;
+    float m = cluster_margin(cp, lo, hi);
     if ((cp.side > 0.0 && dc - r >= m) || (cp.side < 0.0 && dc + r <= -m)) {
         return CLUSTER_LIGHT_SIDE;
     }
     if (is_soft() && cp.closed && dc + r <= -m) {
         return CLUSTER_BEHIND_CLOSED;
     }
-    if (is_soft() && outside_penumbra(cp, c, h, m)) {
-        return CLUSTER_OUTSIDE_PENUMBRA;
-    }
     return CLUSTER_KEEP;
+}
+
+// Soft occlusion's rule for a chunk of samples (kept_pairs): cull_rule,
+// or the box outside the caster's penumbra volume (outside_penumbra).
+// Tile binning leaves the penumbra rule out: per tile it cost more than
+// it saved (torus_knot:100000: binning 0.6 -> 1.6 s, occlusion unchanged),
+// the chunks' own boxes drop the same pairs.
+uint chunk_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
+    uint rule = cull_rule(cp, lo, hi);
+    if (rule != CLUSTER_KEEP || !is_soft() || cp.n == vec3(0.0)) {
+        return rule;
+    }
+    vec3 c = 0.5 * (lo + hi), h = 0.5 * (hi - lo);
+    return outside_penumbra(cp, c, h, cluster_margin(cp, lo, hi)) ? CLUSTER_OUTSIDE_PENUMBRA : CLUSTER_KEEP;
 }
 
 

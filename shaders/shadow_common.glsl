@@ -51,8 +51,8 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 // Soft occlusion: (pair, chunk of 64 samples) visits that the chunk's own
 // box or texels ruled out (soft_occlusion.comp, kept_pairs).
 #define COUNTER_CLUSTER_CHUNK 14
-// Tile binning: (pair, tile) bins dropped because the tile's box lies
-// outside the caster's penumbra volume (soft; clusters_common.glsl).
+// Soft occlusion: of those, the visits whose chunk's box lies outside the
+// caster's penumbra volume (clusters_common.glsl: chunk_rule).
 #define COUNTER_CLUSTER_OUTSIDE_PENUMBRA 15
 #define COUNTER_COUNT 16
 

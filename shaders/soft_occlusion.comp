@@ -251,7 +251,7 @@ shared vec4 chunk_lo[64], chunk_hi[64];
 
 // This workgroup's pairs that its samples may need, into kept_pairs; the
 // count of those kept. All invocations call it (barriers).
-uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped) {
+uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra) {
     uint lid = gl_LocalInvocationID.x;
     // The chunk's box and texel rectangle: per subgroup, then over the
     // subgroups through shared memory; lanes without a sample add nothing.
@@ -280,7 +280,7 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped) {
     }
     bool any_sample = lo.x <= hi.x;
     bool box = any_sample && uintBitsToFloat(texelFetch(boxes_tb, int(2u * un.tile)).w) != 0.0;
-    uint local_dropped = 0u;
+    uint local_dropped = 0u, local_penumbra = 0u;
     for (uint k = un.pair_begin + lid; k < un.pair_end; k += 64u) {
         uint pi = texelFetch(tile_pairs_tb, int(k)).x;
         bool keep = true;
@@ -290,7 +290,9 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped) {
             uvec2 rmax = uvec2(ids.w & 0xffffu, ids.w >> 16);
             ClusterPlane plane = triangle_cluster_plane(triangles_tb, ids.x);
             bool rect_misses = any(lessThan(tmax, rmin)) || any(greaterThan(tmin, rmax));
-            keep = !rect_misses && cull_rule(plane, lo, hi) == CLUSTER_KEEP;
+            uint rule = rect_misses ? CLUSTER_LIGHT_SIDE : chunk_rule(plane, lo, hi);
+            keep = rule == CLUSTER_KEEP;
+            local_penumbra += rule == CLUSTER_OUTSIDE_PENUMBRA ? 1u : 0u;
         }
         // One shared atomic per subgroup (lavapipe serializes per-lane atomics).
         uvec4 ballot = subgroupBallot(keep);
@@ -308,6 +310,7 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped) {
     }
     barrier();
     dropped = local_dropped;
+    penumbra = local_penumbra;
     return kept_count;
 }
 
@@ -323,8 +326,8 @@ void main() {
     float inv_r = 1.0 / pc.soft_light.x;
     uvec4 qb = un.has_sample ? texelFetch(list_samples_tb, int(s)) : uvec4(0u);
     vec3 x = uintBitsToFloat(qb.xyz);
-    uint chunk_dropped;
-    uint kept = keep_pairs(un, x, chunk_dropped);
+    uint chunk_dropped, chunk_penumbra;
+    uint kept = keep_pairs(un, x, chunk_dropped, chunk_penumbra);
     uint begin = 0u, end = kept;
     if (un.has_sample) {
         FOR_BLOCKS(INIT_BLOCK)
@@ -426,8 +429,10 @@ void main() {
     uint sum_blocking = subgroupAdd(blocking);
     uint sum_unsure = subgroupAdd(unsure_bits);
     uint sum_dropped = subgroupAdd(chunk_dropped);
+    uint sum_penumbra = subgroupAdd(chunk_penumbra);
     if (subgroupElect() && sum_dropped != 0u) {
         atomicAdd(counters[COUNTER_CLUSTER_CHUNK], sum_dropped);
+        atomicAdd(counters[COUNTER_CLUSTER_OUTSIDE_PENUMBRA], sum_penumbra);
     }
     if (subgroupElect() && (sum_tests | sum_blocking | sum_unsure) != 0u) {
         atomicAdd(counters[COUNTER_TESTS], sum_tests);

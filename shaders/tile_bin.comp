@@ -42,7 +42,7 @@ void main() {
     if (CLUSTERS != 0u) {
         plane = triangle_cluster_plane(triangles_tb, cf.ids.x);
     }
-    uint light_side = 0u, behind_closed = 0u, outside_penumbra = 0u;
+    uint light_side = 0u, behind_closed = 0u;
     for (uint ty = t0.y; ty <= t1.y; ty++) {
         for (uint tx = t0.x; tx <= t1.x; tx++) {
             // The part of the tile inside the rectangle.
@@ -61,7 +61,6 @@ void main() {
                 uint rule = cull_rule(plane, box_lo.xyz, box_hi);
                 light_side += rule == CLUSTER_LIGHT_SIDE ? 1u : 0u;
                 behind_closed += rule == CLUSTER_BEHIND_CLOSED ? 1u : 0u;
-                outside_penumbra += rule == CLUSTER_OUTSIDE_PENUMBRA ? 1u : 0u;
                 if (rule != CLUSTER_KEEP) {
                     continue;
                 }
@@ -79,8 +78,5 @@ void main() {
     }
     if (SCATTER == 0u && behind_closed != 0u) {
         atomicAdd(counters[COUNTER_CLUSTER_BEHIND_CLOSED], behind_closed);
-    }
-    if (SCATTER == 0u && outside_penumbra != 0u) {
-        atomicAdd(counters[COUNTER_CLUSTER_OUTSIDE_PENUMBRA], outside_penumbra);
     }
 }

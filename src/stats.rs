@@ -61,13 +61,13 @@ pub struct ShadowStats {
     pub bins_dropped_light_side: u32,
     /// The same, every sample behind a closed caster (soft shadows).
     pub bins_dropped_behind_closed: u32,
-    /// The same, the tile's box outside the caster's penumbra volume (soft
-    /// shadows: one edge's plane through any sample of the box leaves the
-    /// whole light outside the caster's cone).
-    pub bins_dropped_outside_penumbra: u32,
     /// Soft occlusion: (pair, chunk of 64 samples) visits that the chunk's
     /// own box (the same rules) or texels ruled out before the loop.
     pub chunk_pairs_dropped: u32,
+    /// Of those, the visits whose chunk's box lies outside the caster's
+    /// penumbra volume (one edge's plane through any sample of the box
+    /// leaves the whole light outside the caster's cone).
+    pub chunk_pairs_outside_penumbra: u32,
     /// Bytes of GPU buffers the passes used.
     pub gpu_buffer_bytes: u64,
     /// Buffers and images the passes created (0 once warm).
@@ -160,8 +160,8 @@ impl ShadowStats {
             view_sample_triangle_tests: c[counter::TESTS],
             bins_dropped_light_side: c[counter::CLUSTER_LIGHT_SIDE],
             bins_dropped_behind_closed: c[counter::CLUSTER_BEHIND_CLOSED],
-            bins_dropped_outside_penumbra: c[counter::CLUSTER_OUTSIDE_PENUMBRA],
             chunk_pairs_dropped: c[counter::CLUSTER_CHUNK],
+            chunk_pairs_outside_penumbra: c[counter::CLUSTER_OUTSIDE_PENUMBRA],
             gpu_buffer_bytes: out.buffer_bytes,
             allocations: out.allocations,
             ms,

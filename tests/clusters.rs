@@ -112,7 +112,7 @@ fn clusters_change_no_result() {
                     (
                         without.stats.bins_dropped_light_side,
                         without.stats.bins_dropped_behind_closed,
-                        without.stats.bins_dropped_outside_penumbra,
+                        without.stats.chunk_pairs_outside_penumbra,
                         without.stats.chunk_pairs_dropped
                     ),
                     (0, 0, 0, 0),
@@ -121,13 +121,13 @@ fn clusters_change_no_result() {
                 let (a, b, p) = (
                     with.stats.bins_dropped_light_side as u64,
                     with.stats.bins_dropped_behind_closed as u64,
-                    with.stats.bins_dropped_outside_penumbra as u64,
+                    with.stats.chunk_pairs_outside_penumbra as u64,
                 );
                 // (The tests count only pairs past occlusion's own early
                 // outs, and depends on the order of a tile's pairs where a
                 // full mask stops early: printed, not compared.)
                 eprintln!(
-                    "{spec}, {name}, {mode:?}: tests {} -> {}; bins dropped {a} (light side) + {b} (behind closed) + {p} (outside penumbra); chunk visits dropped {}",
+                    "{spec}, {name}, {mode:?}: tests {} -> {}; bins dropped {a} (light side) + {b} (behind closed); chunk visits dropped {} ({p} outside penumbra)",
                     without.stats.view_sample_triangle_tests,
                     with.stats.view_sample_triangle_tests,
                     with.stats.chunk_pairs_dropped,
@@ -141,7 +141,7 @@ fn clusters_change_no_result() {
         }
     }
     eprintln!(
-        "{cases} cases; bins dropped: {light_side} light side, {behind_closed} behind closed, {penumbra} outside penumbra; chunk visits dropped: {chunk}"
+        "{cases} cases; bins dropped: {light_side} light side, {behind_closed} behind closed; chunk visits dropped: {chunk} ({penumbra} outside penumbra)"
     );
     assert!(
         light_side > 0 && behind_closed > 0 && penumbra > 0 && chunk > 0,

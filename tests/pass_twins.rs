@@ -224,27 +224,18 @@ fn check_bins(
     assert_eq!(
         (
             c[counter::CLUSTER_LIGHT_SIDE],
-            c[counter::CLUSTER_BEHIND_CLOSED],
-            c[counter::CLUSTER_OUTSIDE_PENUMBRA]
+            c[counter::CLUSTER_BEHIND_CLOSED]
         ),
-        (
-            bins.dropped_light_side,
-            bins.dropped_behind_closed,
-            bins.dropped_outside_penumbra
-        ),
+        (bins.dropped_light_side, bins.dropped_behind_closed),
         "bins dropped per rule"
     );
     eprintln!(
-        "{}: {} boxes, dropped {} (light side) + {} (behind closed) + {} (outside penumbra) of {} bins",
+        "{}: {} boxes, dropped {} (light side) + {} (behind closed) of {} bins",
         inp.desc.name,
         boxes.iter().flatten().count(),
         bins.dropped_light_side,
         bins.dropped_behind_closed,
-        bins.dropped_outside_penumbra,
-        total as u32
-            + bins.dropped_light_side
-            + bins.dropped_behind_closed
-            + bins.dropped_outside_penumbra
+        total as u32 + bins.dropped_light_side + bins.dropped_behind_closed
     );
     (pair_count, total)
 }

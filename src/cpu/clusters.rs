@@ -83,7 +83,7 @@ pub enum ClusterRule {
     BehindClosed,
     /// Every sample outside the caster's penumbra volume: one edge's plane
     /// through the sample leaves the whole light outside the caster's cone
-    /// (soft shadows).
+    /// (soft shadows; [`chunk_rule`] only).
     OutsidePenumbra,
 }
 
@@ -168,11 +168,24 @@ pub fn cull_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option<
         return Some(ClusterRule::LightSide);
     }
     let soft = matches!(light, ClusterLight::Sphere(..));
-    if soft && p.closed && dc + r <= -m {
-        return Some(ClusterRule::BehindClosed);
+    (soft && p.closed && dc + r <= -m).then_some(ClusterRule::BehindClosed)
+}
+
+/// Soft occlusion's rule for a chunk of samples (`chunk_rule`):
+/// [`cull_rule`], or the box outside the caster's penumbra volume.
+pub fn chunk_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option<ClusterRule> {
+    let rule = cull_rule(p, b, light);
+    let ClusterLight::Sphere(o, r_light) = *light else {
+        return rule;
+    };
+    if rule.is_some() || p.n == Vec3::ZERO {
+        return rule;
     }
-    (soft && outside_penumbra(p, c, h, light.origin(), r_light, m))
-        .then_some(ClusterRule::OutsidePenumbra)
+    let c = 0.5 * (b.lo + b.hi);
+    let h = 0.5 * (b.hi - b.lo);
+    let scale = p.a.length() + o.length() + r_light + b.lo.abs().max(b.hi.abs()).length();
+    let m = CLUSTER_MARGIN * scale;
+    outside_penumbra(p, c, h, o, r_light, m).then_some(ClusterRule::OutsidePenumbra)
 }
 
 /// The bounds of `dot(g, x - p)` over the box (centre `bc`, half extent `bh`).
@@ -351,7 +364,11 @@ mod tests {
     /// x leaves the whole sphere (o, r) outside the caster's cone.
     fn edge_test_rejects(v: [glam::DVec3; 3], o: glam::DVec3, r: f64, x: glam::DVec3) -> bool {
         let [a, b, c] = v;
-        let m = [(a - x).cross(b - x), (b - x).cross(c - x), (c - x).cross(a - x)];
+        let m = [
+            (a - x).cross(b - x),
+            (b - x).cross(c - x),
+            (c - x).cross(a - x),
+        ];
         let se = if m[0].dot(c - x) < 0.0 { -1.0 } else { 1.0 };
         m.iter()
             .any(|mi| (-se * *mi / mi.length()).dot(x - o) / r <= -1.0)
@@ -384,7 +401,7 @@ mod tests {
                 hi: centre + half,
             };
             tried += 1;
-            if cull_rule(&p, &b, &light) != Some(ClusterRule::OutsidePenumbra) {
+            if chunk_rule(&p, &b, &light) != Some(ClusterRule::OutsidePenumbra) {
                 continue;
             }
             dropped += 1;

@@ -85,9 +85,6 @@ pub struct Bins {
     /// (Pair, tile) bins dropped because every sample of the tile's box is
     /// behind a closed caster (soft shadows).
     pub dropped_behind_closed: u32,
-    /// (Pair, tile) bins dropped because the tile's box lies outside the
-    /// caster's penumbra volume (soft shadows).
-    pub dropped_outside_penumbra: u32,
 }
 
 /// Bins every pair into the tiles it touches; `occupied[tile]`: whether the
@@ -120,8 +117,8 @@ pub fn bin_pairs(
             match rule {
                 Some(ClusterRule::LightSide) => bins.dropped_light_side += 1,
                 Some(ClusterRule::BehindClosed) => bins.dropped_behind_closed += 1,
-                Some(ClusterRule::OutsidePenumbra) => bins.dropped_outside_penumbra += 1,
-                None => bins.tiles[tile].push(i as u32),
+                // (cull_rule has no penumbra rule: soft occlusion's chunks apply it.)
+                Some(ClusterRule::OutsidePenumbra) | None => bins.tiles[tile].push(i as u32),
             }
         }
     }

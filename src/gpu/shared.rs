@@ -183,9 +183,9 @@ pub mod counter {
     /// Soft occlusion: (pair, chunk of 64 samples) visits that the chunk's
     /// own box or texels ruled out.
     pub const CLUSTER_CHUNK: usize = 14;
-    /// The same, because the tile's box lies outside the caster's penumbra
-    /// volume: one edge's plane through any of its samples leaves the whole
-    /// light outside the caster's cone (soft).
+    /// Soft occlusion: of those, the visits whose chunk's box lies outside
+    /// the caster's penumbra volume (one edge's plane through any of its
+    /// samples leaves the whole light outside the caster's cone).
     pub const CLUSTER_OUTSIDE_PENUMBRA: usize = 15;
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.
