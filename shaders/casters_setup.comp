@@ -119,7 +119,19 @@ void main() {
     if (i >= pc.sizes.y) {
         return;
     }
-    bool closed = (texelFetch(triangles_tb, int(3u * i)).w & TRIANGLE_CLOSED) != 0u;
+    uint flags = texelFetch(triangles_tb, int(3u * i)).w;
+    bool closed = (flags & TRIANGLE_CLOSED) != 0u;
+    if (!caster_in_class(flags)) {
+        // The other round's caster: no planes, no pairs.
+        CasterPlanes none;
+        none.support = vec4(0.0);
+        none.edge0 = vec4(0.0);
+        none.edge1 = vec4(0.0);
+        none.edge2 = vec4(0.0);
+        none.side = vec4(0.0);
+        planes[i] = none;
+        return;
+    }
     vec3 o = pc.origin.xyz;
     // Camera-relative vertices; every normal is a cross product with one
     // short edge vector so small triangles far from the light keep

@@ -55,8 +55,11 @@ struct GpuViewSample {
 struct GpuTriangle {
     vec4 v0_flags; // xyz: vertex 0; w: TRIANGLE_* flags (uint bits)
     vec4 v1_mesh;  // xyz: vertex 1; w: mesh id (uint bits)
-    vec4 v2_pad;   // xyz: vertex 2; w: reserved, 0 (uint bits)
+    vec4 v2_pad;   // xyz: vertex 2; w: the alpha-test record with TRIANGLE_ALPHA, else 0 (uint bits)
 };
+// GpuTriangle.v0_flags.w bit: an alpha-tested triangle (alpha_common.glsl),
+// whose record is v2_pad.w.
+#define TRIANGLE_ALPHA 8u
 
 // ---- Frame constants (uniform buffer, std140) -----------------------------
 

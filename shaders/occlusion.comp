@@ -11,7 +11,11 @@
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_basic : require
 #include "shadow_common.glsl"
+#include "alpha_common.glsl"
 layout(local_size_x = 64) in;
+// 1: the alpha-tested casters' round: a hit counts where the caster is
+// opaque at the segment's crossing (alpha_common.glsl).
+layout(constant_id = 5) const uint ALPHA = 0u;
 
 // The hot gathers come from texel buffers (RGBA32UI / R32UI views): on
 // lavapipe a texel fetch is ~10x faster than a storage-buffer load
@@ -26,6 +30,10 @@ layout(set = 0, binding = 6) uniform usamplerBuffer list_samples_tb; // xyz floa
 layout(set = 0, binding = 7) buffer Shadowed { uint shadowed[]; };
 layout(set = 0, binding = 8) buffer Counters { uint counters[]; };
 layout(set = 0, binding = 9) readonly buffer UnitOffsets { uint unit_offsets[]; };
+layout(set = 0, binding = 10) uniform usamplerBuffer triangles_tb;    // GpuTriangle: 3 texels
+layout(set = 0, binding = 11) uniform usamplerBuffer alpha_records;
+layout(set = 0, binding = 12) uniform usamplerBuffer alpha_textures;
+layout(set = 0, binding = 13) uniform usamplerBuffer alpha_texels;
 
 void main() {
     uint unit = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
@@ -99,10 +107,21 @@ void main() {
                     // Support plane on the camera-relative position, edge
                     // planes on the light-relative one (cpu::casters::CasterPlanes::blocks).
                     vec3 q = qs.xyz - pc.origin.xyz;
-                    if (dot(cp.support.xyz, qs.xyz) + cp.support.w < 0.0
+                    bool hit = dot(cp.support.xyz, qs.xyz) + cp.support.w < 0.0
                         && inside_edge(cp.edge0, cp.side.x, q)
                         && inside_edge(cp.edge1, cp.side.y, q)
-                        && inside_edge(cp.edge2, cp.side.z, q)) {
+                        && inside_edge(cp.edge2, cp.side.z, q);
+                    if (ALPHA != 0u && hit) {
+                        // Where the segment to the light crosses the caster.
+                        uint ti = 3u * cf.ids.x;
+                        vec3 a = uintBitsToFloat(texelFetch(triangles_tb, int(ti)).xyz);
+                        vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(ti + 1u)).xyz);
+                        uvec4 c = texelFetch(triangles_tb, int(ti + 2u));
+                        vec3 d = is_point_light() ? pc.origin.xyz - qs.xyz : -pc.direction.xyz;
+                        vec2 bc = segment_barycentrics(qs.xyz, d, a, b, uintBitsToFloat(c.xyz));
+                        hit = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, c.w, bc);
+                    }
+                    if (hit) {
                         shadowed[s] = 1u;
                     }
                 }

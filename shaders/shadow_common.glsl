@@ -63,7 +63,7 @@ struct LightPush {
     uvec4 sizes;       // x: view samples, y: triangles, z: resolution, w: face count
     uvec4 more;        // x: pair capacity, y: tiles per row, z: tiles per face, w: occlusion units
     vec4 dir_right;    // directional light's face basis: right
-    vec4 dir_up;       // and up (forward = direction)
+    vec4 dir_up;       // and up (forward = direction); w: the casters of this run (caster_in_class)
     uvec4 soft;        // x: 128-sample block (exact mode) or the unsure list's capacity (look-up mode),
                        // y: light samples (0: hard shadows), z: LUT resolution,
                        // w: soft occlusion, look-up mode: the dispatch's first work unit
@@ -115,6 +115,14 @@ struct CasterFace {
 layout(push_constant) uniform Push { LightPush pc; };
 // The global id of this run's triangle i: view samples name their own triangle globally.
 uint global_triangle(uint i) { return i + floatBitsToUint(pc.soft_light.z); }
+
+// Which casters a run's passes take (LightPush.dir_up.w, a float): 0 every
+// triangle, 1 the opaque ones, 2 the alpha-tested ones (the second round of
+// a light's passes, with the alpha tests: light_passes.rs).
+bool caster_in_class(uint flags) {
+    float c = pc.dir_up.w;
+    return c == 0.0 || (c == 2.0) == ((flags & TRIANGLE_ALPHA) != 0u);
+}
 
 // Soft shadows: the light is the bounding sphere (origin, R) of its samples.
 bool is_soft() { return pc.soft.y != 0u; }

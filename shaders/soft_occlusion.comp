@@ -23,7 +23,13 @@
 #define LIGHT_SAMPLES_BINDING 10
 #include "soft_common.glsl"
 #include "clusters_common.glsl"
+#include "alpha_common.glsl"
 layout(local_size_x = 64) in;
+// 1: the alpha-tested casters' round (exact and look-up modes): a light
+// sample counts as blocked only where the caster is opaque at its
+// segment's crossing, tested per light sample (exact mode, here; look-up
+// mode, every bit the table does not rule out goes to the unsure list).
+layout(constant_id = 5) const uint ALPHA = 0u;
 // Compiled once per variant (build.rs): EXACT=1, or LUT_BLOCKS=1..8 (the
 // light's 128-sample blocks) with SURE=0 or 1. Code of the other mode and of unused blocks
 // is compiled out, not branched over: lavapipe pays for guarded code it
@@ -99,6 +105,9 @@ layout(set = 0, binding = 12) writeonly buffer UnsureList { uvec4 unsure_list[];
 // Per tile: its view-sample box (clusters_bounds.comp; lo.w = 0: no box,
 // and then no chunk culling either: the clusters are off or the tile too big).
 layout(set = 0, binding = 13) uniform usamplerBuffer boxes_tb;
+layout(set = 0, binding = 14) uniform usamplerBuffer alpha_records;
+layout(set = 0, binding = 15) uniform usamplerBuffer alpha_textures;
+layout(set = 0, binding = 16) uniform usamplerBuffer alpha_texels;
 #if SURE
 // Look-up mode runs the units in ranges, each flushing its unsure list
 // (soft_occlusion.rs): soft.w is the range's first unit.
@@ -200,6 +209,9 @@ uvec4 past_end(uint block) {
         if (rounding_too_large) {                                            \
             sure = uvec4(0u);                                                \
             maybe = uvec4(0xffffffffu);                                      \
+        }                                                                    \
+        if (ALPHA != 0u) {                                                   \
+            sure = uvec4(0u); /* opaque or not: the unsure pass decides */   \
         }                                                                    \
         maybe &= ~acc##K;                                                    \
         sure &= maybe;                                                       \
@@ -353,7 +365,8 @@ void main() {
             uvec4 t0 = texelFetch(triangles_tb, int(3u * ids.x));
             vec3 a = uintBitsToFloat(t0.xyz);
             vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 1u)).xyz);
-            vec3 c = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 2u)).xyz);
+            uvec4 c_record = texelFetch(triangles_tb, int(3u * ids.x + 2u));
+            vec3 c = uintBitsToFloat(c_record.xyz);
             vec3 n = cross(b - a, c - a);
             float sx = dot(n, x - a);
             bool closed = (t0.w & TRIANGLE_CLOSED) != 0u;
@@ -406,7 +419,12 @@ void main() {
             uvec4 bits = uvec4(0u);
             for (uint j = 0u; j < n_block; j++) {
                 vec3 l = light_samples[base + j].xyz;
-                if (exact_blocks(l, n, sigma, a, x, m0, m1, m2, se)) {
+                bool blocked = exact_blocks(l, n, sigma, a, x, m0, m1, m2, se);
+                if (ALPHA != 0u && blocked) {
+                    vec2 bc = segment_barycentrics(x, l - x, a, b, c);
+                    blocked = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, c_record.w, bc);
+                }
+                if (blocked) {
                     uint w = j >> 5u, bit = 1u << (j & 31u);
                     bits |= uvec4(w == 0u ? bit : 0u, w == 1u ? bit : 0u, w == 2u ? bit : 0u, w == 3u ? bit : 0u);
                 }

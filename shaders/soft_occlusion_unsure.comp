@@ -7,12 +7,19 @@
 #extension GL_GOOGLE_include_directive : require
 #define LIGHT_SAMPLES_BINDING 4
 #include "soft_common.glsl"
+#include "alpha_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
+// 1: the alpha-tested casters' round: a light sample counts as blocked
+// where the caster is opaque at its segment's crossing.
+layout(constant_id = 5) const uint ALPHA = 0u;
 
 layout(set = 0, binding = 0) uniform usamplerBuffer unsure_tb;       // 2 texels per entry
 layout(set = 0, binding = 1) uniform usamplerBuffer triangles_tb;    // GpuTriangle: 3 texels
 layout(set = 0, binding = 2) uniform usamplerBuffer list_samples_tb; // xyz float bits, w triangle id
 layout(set = 0, binding = 3) buffer Masks { uint masks[]; };         // per list slot: blocked bits
+layout(set = 0, binding = 5) uniform usamplerBuffer alpha_records;
+layout(set = 0, binding = 6) uniform usamplerBuffer alpha_textures;
+layout(set = 0, binding = 7) uniform usamplerBuffer alpha_texels;
 
 void main() {
     uint e = linear_invocation();
@@ -25,7 +32,8 @@ void main() {
     vec3 x = uintBitsToFloat(texelFetch(list_samples_tb, int(s)).xyz);
     vec3 a = uintBitsToFloat(texelFetch(triangles_tb, int(3u * tri)).xyz);
     vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * tri + 1u)).xyz);
-    vec3 c = uintBitsToFloat(texelFetch(triangles_tb, int(3u * tri + 2u)).xyz);
+    uvec4 c_record = texelFetch(triangles_tb, int(3u * tri + 2u));
+    vec3 c = uintBitsToFloat(c_record.xyz);
     // The same planes as soft_occlusion.comp computes.
     vec3 n = cross(b - a, c - a);
     float sigma = dot(n, x - a) > 0.0 ? 1.0 : -1.0;
@@ -39,7 +47,12 @@ void main() {
             uint bit = uint(findLSB(left));
             left &= left - 1u;
             vec3 l = light_samples[block * 128u + w * 32u + bit].xyz;
-            if (exact_blocks(l, n, sigma, a, x, m0, m1, m2, se)) {
+            bool blocked = exact_blocks(l, n, sigma, a, x, m0, m1, m2, se);
+            if (ALPHA != 0u && blocked) {
+                vec2 bc = segment_barycentrics(x, l - x, a, b, c);
+                blocked = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, c_record.w, bc);
+            }
+            if (blocked) {
                 got |= 1u << bit;
             }
         }

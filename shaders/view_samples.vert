@@ -7,12 +7,15 @@
 // Vertices are camera-relative, so the eye is the origin and the view
 // transform is three dot products with the camera basis.
 
+#include "view_ray.glsl"
+
 layout(location = 0) in vec3 position; // camera-relative vertex
 
 layout(push_constant) uniform RasterPush {
     vec4 right;   // xyz: camera right / (tan(fov/2) * aspect)
     vec4 down;    // xyz: -camera up / tan(fov/2) (framebuffer y grows downwards)
     vec4 forward; // xyz: camera forward; w: near plane distance
+    ViewRay ray;  // the fragment shader's alpha test
 } pc;
 
 layout(location = 0) flat out uint triangle_id;

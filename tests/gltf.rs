@@ -683,7 +683,13 @@ fn base_colour_textures_from_buffer_views_and_data_uris() {
     d.nodes(json!([{"mesh": 0}]), &[0]);
     for bytes in [d.glb(), d.gltf()] {
         let s = load_ok(&bytes);
-        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        // The one warning: BLEND casts as MASK at 0.5 (the rule).
+        assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+        assert!(
+            s.warnings[0].contains("material \"blend\": BLEND is cast and seen as MASK"),
+            "{:?}",
+            s.warnings
+        );
         assert_eq!(s.materials.len(), 3);
         let m = &s.materials[0];
         assert_eq!(m.name, "masked");
@@ -691,7 +697,7 @@ fn base_colour_textures_from_buffer_views_and_data_uris() {
         assert_eq!(m.alpha_cutoff, 0.3);
         assert_eq!(m.base_color_factor, [0.5, 0.25, 1.0, 0.75]);
         assert_eq!(
-            m.base_color_texture.as_ref().unwrap().image.as_ref(),
+            m.base_color_texture.as_ref().unwrap().image.as_deref(),
             Some(&img)
         );
         let b = &s.materials[1];
@@ -699,7 +705,7 @@ fn base_colour_textures_from_buffer_views_and_data_uris() {
         assert_eq!(b.alpha_cutoff, 0.5);
         assert_eq!(b.base_color_factor, [1.0; 4]);
         assert_eq!(
-            b.base_color_texture.as_ref().unwrap().image.as_ref(),
+            b.base_color_texture.as_ref().unwrap().image.as_deref(),
             Some(&img)
         );
         let o = &s.materials[2];
@@ -754,7 +760,7 @@ fn missing_texture_files_are_warnings_not_errors() {
             .as_ref()
             .unwrap()
             .image
-            .as_ref(),
+            .as_deref(),
         Some(&test_image())
     );
     assert!(s.materials[2]
@@ -836,7 +842,8 @@ fn written_glb_round_trips_through_the_loader() {
                 base_color_factor: [1.0, 0.5, 0.25, 1.0],
                 base_color_texture: Some(Texture {
                     source: "test".into(),
-                    image: Some(img.clone()),
+                    image: Some(std::sync::Arc::new(img.clone())),
+                    sampler: Default::default(),
                 }),
             },
         ],
@@ -882,7 +889,7 @@ fn written_glb_round_trips_through_the_loader() {
         (AlphaMode::Mask, 0.25, [1.0, 0.5, 0.25, 1.0])
     );
     assert_eq!(
-        m.base_color_texture.as_ref().unwrap().image.as_ref(),
+        m.base_color_texture.as_ref().unwrap().image.as_deref(),
         Some(&img)
     );
 }

@@ -1,8 +1,10 @@
 //! Alias-free hard shadows on the GPU (lavapipe, validation on) against the
 //! CPU oracle, fed exactly the same view samples; and the CPU twins chained.
 
+use alias_free_shadows::cpu::alpha::AlphaTables;
 use alias_free_shadows::cpu::hard_shadows::hard_shadows;
 use alias_free_shadows::cpu::light_view::LightView;
+use alias_free_shadows::gpu::alpha::mark_alpha_triangles;
 use alias_free_shadows::gpu::shared::counter;
 use alias_free_shadows::gpu::{gpu_inputs, ShadowPipeline};
 use alias_free_shadows::light::{LightSamples, LightShape};
@@ -17,6 +19,8 @@ struct Case {
     samples: Vec<Option<(Vec3, Vec3)>>,
     sample_tris: Vec<u32>,
     triangles: Vec<([Vec3; 3], bool)>,
+    /// The scene's alpha tests (builtin:fence's lattice).
+    alpha: AlphaTables,
     oracle_lit: Vec<f32>,
 }
 
@@ -74,6 +78,7 @@ fn case(spec: &str, size: u32) -> Case {
             .iter()
             .map(|t| (t.vertices.map(|v| (v - eye).as_vec3()), t.closed))
             .collect(),
+        alpha: AlphaTables::new(&desc.scene),
         oracle_lit,
     }
 }
@@ -106,7 +111,14 @@ const SCENES: [&str; 7] = [
 fn cpu_twins_match_the_oracle() {
     for spec in SCENES {
         let c = case(spec, 96);
-        let got = hard_shadows(&c.light, &c.samples, &c.sample_tris, &c.triangles, 64);
+        let got = hard_shadows(
+            &c.light,
+            &c.samples,
+            &c.sample_tris,
+            &c.triangles,
+            64,
+            &c.alpha,
+        );
         let (d, n) = differences(&got.lit, &c);
         eprintln!("twin {spec}: {d} of {n} differ");
         assert!(n > 0);
@@ -128,10 +140,19 @@ fn gpu_matches_the_oracle_and_the_twins() {
                 .zip(&c.sample_tris)
                 .map(|(s, &t)| s.map(|(p, n)| (p, n, t)))
                 .collect();
-            let (vs, ts) = gpu_inputs(&with_ids, &c.triangles);
+            let (vs, mut ts) = gpu_inputs(&with_ids, &c.triangles);
+            mark_alpha_triangles(&mut ts, &c.alpha);
+            pass.set_alpha(&ctx, &c.alpha).unwrap();
             let out = pass.run(&ctx, &vs, &ts, &c.light, res, None).unwrap();
             let (d, n) = differences(&out.lit, &c);
-            let twin = hard_shadows(&c.light, &c.samples, &c.sample_tris, &c.triangles, res);
+            let twin = hard_shadows(
+                &c.light,
+                &c.samples,
+                &c.sample_tris,
+                &c.triangles,
+                res,
+                &c.alpha,
+            );
             let twin_d = out
                 .lit
                 .iter()

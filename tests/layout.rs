@@ -41,7 +41,7 @@ fn expected_triangle(e: u32) -> GpuTriangle {
         v1: [f(b, 4), f(b, 5), f(b, 6)],
         mesh: u(b, 7),
         v2: [f(b, 8), f(b, 9), f(b, 10)],
-        reserved: u(b, 11),
+        alpha_record: u(b, 11),
     }
 }
 
@@ -162,7 +162,7 @@ fn glsl_and_rust_layouts_agree() {
                 format!("GpuTriangle[{e}]"),
                 got[e as usize],
                 expected_triangle(e),
-                [v0, flags, v1, mesh, v2, reserved]
+                [v0, flags, v1, mesh, v2, alpha_record]
             );
         }
         let got: Vec<FrameConstants> = ctx.read_buffer(&frames, 0, 2).unwrap();

@@ -5,6 +5,7 @@
 //! The brute force checks that the influence regions, the culling of closed
 //! triangles and the sphere rejection drop no triangle that blocks a sample.
 
+use alias_free_shadows::cpu::alpha::AlphaTables;
 use alias_free_shadows::cpu::plane_lut as soft;
 use alias_free_shadows::cpu::soft_occlusion::{blocked_bits, PlaneBits};
 use alias_free_shadows::oracle::Oracle;
@@ -88,6 +89,7 @@ fn visible_samples_match_the_brute_force_twin() {
         let view = engine_view_samples(&oracle, &desc);
         let light = sphere_light(&desc, samples);
         let tris = render::user_gpu_triangles(&desc.scene, eye, &view.samples);
+        let alpha = AlphaTables::new(&desc.scene);
         for mode in [SoftMode::Approx, SoftMode::Lut, SoftMode::Exact] {
             let settings = ShadowSettings {
                 mode,
@@ -125,16 +127,23 @@ fn visible_samples_match_the_brute_force_twin() {
                         if t as u32 == s.triangle {
                             continue;
                         }
-                        let exact = blocked_bits(p, *v, *closed, c, rad, n_light, &exact_bits);
+                        // An alpha-tested caster blocks where the segment
+                        // crosses it opaque; the GPU tests it per light
+                        // sample in every mode.
+                        let tested = alpha.is_tested(t as u32);
+                        let opaque = |l: glam::Vec3| alpha.segment_opaque(t as u32, *v, p, l - p);
+                        let opaque = tested.then_some(&opaque as &dyn Fn(glam::Vec3) -> bool);
+                        let exact =
+                            blocked_bits(p, *v, *closed, c, rad, n_light, &exact_bits, opaque);
                         let Some(exact) = exact else { continue };
                         let hides = exact.iter().any(|b| b.iter().any(|&w| w != 0));
                         // Look-up mode gives exact mode's masks; the
                         // approximate mode, the nearest texel's bits.
                         let b = match mode {
-                            SoftMode::Exact | SoftMode::Lut => exact,
-                            SoftMode::Approx => {
-                                blocked_bits(p, *v, *closed, c, rad, n_light, &bits).unwrap()
+                            SoftMode::Approx if !tested => {
+                                blocked_bits(p, *v, *closed, c, rad, n_light, &bits, None).unwrap()
                             }
+                            _ => exact,
                         };
                         for (k, x) in b.iter().enumerate() {
                             for w in 0..4 {

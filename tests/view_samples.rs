@@ -17,7 +17,7 @@ fn gpu_triangles(tris: &[SceneTriangle], eye: DVec3) -> Vec<GpuTriangle> {
 
 fn render(ctx: &GpuContext, camera: &Camera, tris: &[GpuTriangle]) -> (Vec<GpuViewSample>, f64) {
     let mut pass = ViewSamplePass::new(ctx).unwrap();
-    let (buf, ms) = pass.render(ctx, camera, tris).unwrap();
+    let (buf, ms) = pass.render(ctx, camera, tris, None).unwrap();
     let n = camera.width as usize * camera.height as usize;
     (read_view_samples(ctx, buf, n).unwrap(), ms)
 }
@@ -218,7 +218,7 @@ fn timing_512() {
         let mut pass = ViewSamplePass::new(&ctx).unwrap();
         let mut times = Vec::new();
         for _ in 0..5 {
-            let (_, ms) = pass.render(&ctx, &desc.camera, &tris).unwrap();
+            let (_, ms) = pass.render(&ctx, &desc.camera, &tris, None).unwrap();
             times.push(ms);
         }
         println!(

@@ -279,6 +279,7 @@ impl ShadowMapPass {
             depth: Some((DEPTH_FORMAT, vk::CompareOp::GREATER)),
             cull_mode: vk::CullModeFlags::NONE,
             push_constant_bytes: std::mem::size_of::<RasterPush>() as u32,
+            bindings: &[],
         })?;
         let filter = ctx.create_compute_pipeline(&ComputePipelineDesc {
             name: "shadow_filter",
@@ -396,7 +397,7 @@ impl ShadowMapPass {
                     &t.framebuffer,
                     &clear,
                     Some(triangles),
-                    bytemuck::bytes_of(&raster),
+                    (bytemuck::bytes_of(&raster), &[]),
                     vertex_count,
                 )?;
                 rec.copy_attachment_to_buffer(&t.color, 4, &t.map)?;

@@ -3,6 +3,7 @@
 //! stage is compared with, and a test of the algorithm itself against the
 //! oracle.
 
+use super::alpha::AlphaTables;
 use glam::Vec3;
 
 use super::casters::{setup_casters, CasterCounts};
@@ -27,18 +28,29 @@ pub struct HardShadows {
 /// Runs the twins: fit, lists, caster setup, rasterization and occlusion.
 /// `samples` are camera-relative (position, normal) with their triangle
 /// ids (`u32::MAX` for none); `triangles` camera-relative with their mesh's
-/// closed flag.
+/// closed flag, alpha-tested by `alpha` ([`AlphaTables::new`] of their
+/// scene, or empty tables).
 pub fn hard_shadows(
     light: &LightView,
     samples: &[Option<(Vec3, Vec3)>],
     sample_triangles: &[u32],
     triangles: &[([Vec3; 3], bool)],
     resolution: u32,
+    alpha: &AlphaTables,
 ) -> HardShadows {
     let listed: Vec<(Vec3, Vec3)> = samples.iter().flatten().copied().collect();
     let windows = fit_windows(light, &listed, resolution);
     let lists = build_texel_lists(light, &windows, samples, resolution);
     let (planes, pairs, casters) = setup_casters(light, &windows, triangles, resolution);
+    // The segment from a sample towards the light crosses an alpha-tested
+    // caster where its alpha test decides (alpha_common.glsl).
+    let opaque = |t: u32, p: Vec3| {
+        let d = match *light {
+            LightView::Point { position } => position - p,
+            LightView::Directional { direction } => -direction,
+        };
+        alpha.segment_opaque(t, triangles[t as usize].0, p, d)
+    };
     let (shadowed, occ) = occlusion(
         light,
         samples,
@@ -47,6 +59,7 @@ pub fn hard_shadows(
         &planes,
         &pairs,
         resolution,
+        &opaque,
     );
     let lit = lists
         .sample_texel

@@ -1,6 +1,7 @@
 //! CPU twins of the GPU passes in [`crate::gpu`], one module per pass of the
 //! same name: straightforward versions the GPU results are compared with.
 //!
+//! - [`alpha`]: alpha-tested casters' coverage and its tables;
 //! - [`light_view`]: the light's frusta fitted to the view samples;
 //! - [`texel_lists`]: the per-light-texel lists (count, [`scan`], scatter);
 //! - [`clusters`]: each tile's view-sample box and the rules that drop a
@@ -13,6 +14,7 @@
 //! - [`resolve`]: visibility per view sample;
 //! - [`hard_shadows`]: the hard-shadow twins chained into a whole frame.
 
+pub mod alpha;
 pub mod casters;
 pub mod clusters;
 pub mod hard_shadows;

@@ -26,7 +26,10 @@ pub struct OcclusionCounts {
     pub tests: u64,
 }
 
-/// Runs every pair over its texels and returns per-sample shadow bits.
+/// Runs every pair over its texels and returns per-sample shadow bits. A
+/// hit of triangle `t` on sample `p` counts only where `opaque(t, p)` (its
+/// alpha test where the segment to the light crosses it; always, for
+/// opaque triangles).
 #[allow(clippy::too_many_arguments)]
 pub fn occlusion(
     light: &LightView,
@@ -36,6 +39,7 @@ pub fn occlusion(
     planes: &[Option<CasterPlanes>],
     pairs: &[CasterFace],
     resolution: u32,
+    opaque: &dyn Fn(u32, Vec3) -> bool,
 ) -> (Vec<bool>, OcclusionCounts) {
     let r2 = resolution * resolution;
     let origin = light.origin();
@@ -60,7 +64,7 @@ pub fn occlusion(
                     }
                     counts.tests += 1;
                     let (p, _) = samples[i].expect("listed samples exist");
-                    if pl.blocks(p, origin) {
+                    if pl.blocks(p, origin) && opaque(cf.triangle, p) {
                         shadowed[i] = true;
                     }
                 }

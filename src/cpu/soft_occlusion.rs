@@ -28,7 +28,11 @@ pub enum PlaneBits<'a> {
 /// (origin, radius); `closed` triangles block only light samples behind
 /// their oriented plane. `None` when the pair is not tested (x on the
 /// plane, or behind a closed triangle). The same arithmetic as
-/// `soft_occlusion.comp`, sphere rejection included.
+/// `soft_occlusion.comp`, sphere rejection included. An alpha-tested
+/// triangle blocks a light sample `l` only where `opaque(l)` (its alpha
+/// test where the segment from x to l crosses it: [`crate::cpu::alpha`]);
+/// the GPU tests those per light sample in every mode, so they take
+/// [`PlaneBits::Exact`].
 #[allow(clippy::too_many_arguments)]
 pub fn blocked_bits(
     x: Vec3,
@@ -38,6 +42,7 @@ pub fn blocked_bits(
     radius: f32,
     light_samples: usize,
     bits: &PlaneBits,
+    opaque: Option<&dyn Fn(Vec3) -> bool>,
 ) -> Option<Vec<BlockBits>> {
     let nb = blocks(light_samples);
     let none = vec![[0u32; 4]; nb];
@@ -100,6 +105,7 @@ pub fn blocked_bits(
                     && se * m[0].dot(l - x) > 0.0
                     && se * m[1].dot(l - x) > 0.0
                     && se * m[2].dot(l - x) > 0.0
+                    && opaque.is_none_or(|o| o(l))
                 {
                     out[j / 128][(j % 128) / 32] |= 1 << (j % 32);
                 }
@@ -133,6 +139,7 @@ mod tests {
             r,
             2,
             &PlaneBits::Exact { samples: &samples },
+            None,
         )
         .unwrap();
         assert_eq!(exact, vec![[1, 0, 0, 0]]);
@@ -146,6 +153,7 @@ mod tests {
             r,
             2,
             &PlaneBits::Lut { lut: &lut, res: 64 },
+            None,
         )
         .unwrap();
         assert_eq!(looked_up, exact);

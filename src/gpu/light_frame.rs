@@ -5,6 +5,7 @@
 
 use crate::cpu::light_view::LightView;
 use crate::cpu::plane_lut::LUT_ROUNDING;
+use crate::gpu::alpha::AlphaInputs;
 use crate::gpu::pass_clock::PassClock;
 use crate::gpu::shared::{LightPush, LIGHT_KIND_DIRECTIONAL, LIGHT_KIND_POINT};
 use crate::gpu::soft_light::{SoftLight, SoftMode};
@@ -28,6 +29,11 @@ pub struct LightInputs<'a> {
     /// The global id of triangle 0 (triangle batches): view samples name
     /// their own triangle by global id.
     pub triangle_base: u32,
+    /// The alpha-tested casters' tables (a placeholder without any).
+    pub alpha: AlphaInputs<'a>,
+    /// Whether some triangle is alpha-tested (`TRIANGLE_ALPHA`): then the
+    /// opaque casters and the alpha-tested ones run in rounds of their own.
+    pub alpha_casters: bool,
 }
 
 /// The sizes of one run and the push constants of its passes.
@@ -132,6 +138,47 @@ impl LightFrame {
     pub fn set_units(&mut self, units: u32) {
         self.push.more[3] = units;
     }
+
+    /// Sets which casters the passes take (`caster_in_class` in
+    /// `shadow_common.glsl`, a float: an integer's bits would be a denormal
+    /// that a driver may flush).
+    pub fn set_round(&mut self, round: CasterRound) {
+        self.push.dir_up[3] = match round {
+            CasterRound::All => 0.0,
+            CasterRound::Opaque => 1.0,
+            CasterRound::Alpha => 2.0,
+        };
+    }
+}
+
+/// Which casters a round of a light's passes takes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CasterRound {
+    /// Every triangle (no triangle is alpha-tested).
+    All,
+    /// The opaque triangles (the first round when some are alpha-tested).
+    Opaque,
+    /// The alpha-tested triangles, with their alpha tests (the second round).
+    Alpha,
+}
+
+impl CasterRound {
+    /// The rounds of a run over `inputs`.
+    pub fn of(inputs: &LightInputs) -> &'static [CasterRound] {
+        if inputs.alpha_casters {
+            &[CasterRound::Opaque, CasterRound::Alpha]
+        } else {
+            &[CasterRound::All]
+        }
+    }
+
+    /// The prefix of the round's pass names in the timings.
+    pub fn prefix(self) -> &'static str {
+        match self {
+            CasterRound::Alpha => "alpha_",
+            _ => "",
+        }
+    }
 }
 
 /// One run being recorded: what every pass's `record` takes. Passes record
@@ -150,9 +197,17 @@ pub struct Recording<'a> {
     pub inputs: LightInputs<'a>,
     /// The run's sizes and push constants.
     pub frame: LightFrame,
+    /// The casters the passes now take (also their timings' prefix).
+    pub round: CasterRound,
 }
 
 impl<'a> Recording<'a> {
+    /// Starts round `round`: the casters the next passes take.
+    pub fn set_round(&mut self, round: CasterRound) {
+        self.round = round;
+        self.frame.set_round(round);
+    }
+
     /// Starts recording the run of `frame` over `inputs`.
     pub fn new(
         ctx: &'a GpuContext,
@@ -166,6 +221,7 @@ impl<'a> Recording<'a> {
             cmd: ctx.begin()?,
             inputs,
             frame,
+            round: CasterRound::All,
         })
     }
 
@@ -176,7 +232,8 @@ impl<'a> Recording<'a> {
         f: impl FnOnce(&mut CommandRecorder, &[u8]) -> Result<()>,
     ) -> Result<()> {
         let push = self.frame.push;
-        self.clock.time(self.ctx, &mut self.cmd, name, |rec| {
+        let name = format!("{}{name}", self.round.prefix());
+        self.clock.time(self.ctx, &mut self.cmd, &name, |rec| {
             f(rec, bytemuck::bytes_of(&push))
         })
     }

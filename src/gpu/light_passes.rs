@@ -8,7 +8,7 @@
 use crate::cpu::light_view::LightView;
 use crate::gpu::casters::CasterPass;
 use crate::gpu::clusters::ClusterPass;
-use crate::gpu::light_frame::Recording;
+use crate::gpu::light_frame::{CasterRound, Recording};
 use crate::gpu::light_frame::{LightFrame, LightInputs};
 use crate::gpu::light_view::LightViewPass;
 use crate::gpu::occlusion::OcclusionPass;
@@ -143,60 +143,65 @@ impl LightPasses {
             Some(sl) => self.plane_lut.ensure(ctx, &mut self.clock, sl)?,
             None => false,
         };
-        self.prepare(ctx, &frame, soft)?;
-        let r = &mut Recording::new(ctx, &mut self.clock, *inputs, frame)?;
-        r.cmd.fill_buffer(self.counters.slice(), 0)?;
-        self.texel_lists.record_clears(&mut r.cmd)?;
-        self.tile_bin.record_clears(&mut r.cmd)?;
+        self.prepare(ctx, &frame, soft, inputs.alpha_casters)?;
+        let LightPasses {
+            light_view,
+            texel_lists,
+            clusters,
+            casters,
+            tile_bin,
+            occlusion,
+            plane_lut,
+            soft_occlusion,
+            resolve,
+            counters,
+            clock,
+        } = self;
+        let r = &mut Recording::new(ctx, clock, *inputs, frame)?;
+        r.cmd.fill_buffer(counters.slice(), 0)?;
+        texel_lists.record_clears(&mut r.cmd)?;
         r.cmd.barrier(Barrier::TransferToCompute);
-        let counters = &self.counters;
 
         // §4.3: the light's frusta fitted to the view samples; §3.1: the
         // per-light-texel lists of view samples (count, scan, scatter).
-        self.light_view.record(r)?;
-        self.texel_lists.record(r, &self.light_view.faces)?;
+        light_view.record(r)?;
+        texel_lists.record(r, &light_view.faces)?;
         // Sintorn et al. 2014: each tile's view samples as one box (soft).
-        self.clusters.record(r, &self.texel_lists, soft.is_some())?;
-        // §3.3, §4.1: each caster's planes and its projection or influence
-        // region; §3.2: conservatively rasterized, binned per tile, less the
-        // tiles whose box it cannot shadow.
-        self.casters.record(r, &self.light_view.faces, counters)?;
-        let bins = (&self.casters, &self.texel_lists, &self.clusters);
-        self.tile_bin.record_count(r, bins, counters, soft)?;
-        r.submit()?;
-        // Only now is the number of binned pairs known: past the binding
-        // limit, the triangles run again in smaller batches.
-        let totals = self.tile_bin.totals(ctx, &frame)?;
-        let binned_bytes = 4 * totals.pairs as u64;
-        if binned_bytes > ctx.info().limits.max_storage_buffer_range as u64 && frame.nt > 1 {
-            return Ok(Ran::TooManyPairs { binned_bytes });
+        clusters.record(r, texel_lists, soft.is_some())?;
+        // §3.2-§4.2: the casters against the samples, in one round; or
+        // two when some are alpha-tested: the opaque ones, then those with
+        // their alpha tests, ORed into what the first blocked.
+        let mut carried = [0u32; counter::COUNT];
+        for (k, &round) in CasterRound::of(inputs).iter().enumerate() {
+            if k > 0 {
+                carry_counters(r, counters, &mut carried)?;
+            }
+            r.set_round(round);
+            let round_light = soft.map(|sl| sl.for_round(round));
+            let samples = (&*light_view, &*texel_lists, &*clusters, &*plane_lut);
+            let tests = (
+                &mut *casters,
+                &mut *tile_bin,
+                &mut *occlusion,
+                &mut *soft_occlusion,
+            );
+            let first = k == 0;
+            if let Some(ran) = cast(r, samples, tests, counters, round_light.as_ref(), first)? {
+                return Ok(ran);
+            }
         }
-        self.tile_bin.record_scatter(r, totals, bins, counters)?;
-        r.frame.set_units(totals.units);
-
-        // §3.3, §4.2: every listed view sample against its tile's casters:
-        // one bit, or a light-sample bitmask ORed over the casters; then
-        // visibility = visible light samples / light samples.
-        let passes = (&self.texel_lists, &self.casters, &self.tile_bin);
-        let lists = &self.texel_lists;
+        // Visibility = visible light samples / light samples.
+        r.set_round(CasterRound::All);
         match soft {
-            None => {
-                self.occlusion.record(r, passes, counters)?;
-                self.resolve
-                    .record_hard(r, lists, &self.occlusion.shadowed)?;
-            }
-            Some(sl) => {
-                let table = self.plane_lut.table();
-                let (lists, casters, bins) = passes;
-                let soft_inputs = (lists, casters, bins, &self.clusters);
-                self.soft_occlusion
-                    .record(r, sl, table, soft_inputs, counters)?;
-                self.resolve.record_soft(r, lists, &self.soft_occlusion)?;
-            }
+            None => resolve.record_hard(r, texel_lists, &occlusion.shadowed)?,
+            Some(_) => resolve.record_soft(r, texel_lists, soft_occlusion)?,
         }
         r.submit()?;
         ctx.check_validation()?;
         let mut out = self.read_output(ctx, &frame, inputs, soft, lut_built)?;
+        for (c, k) in out.counters.iter_mut().zip(carried) {
+            *c = c.saturating_add(k);
+        }
         out.allocations = ctx.allocations() - before;
         Ok(Ran::Done(Box::new(out)))
     }
@@ -208,6 +213,7 @@ impl LightPasses {
         ctx: &GpuContext,
         frame: &LightFrame,
         soft: Option<&SoftLight>,
+        alpha_casters: bool,
     ) -> Result<()> {
         self.counters.get(ctx, 4 * counter::COUNT as u64)?;
         self.light_view.prepare(ctx)?;
@@ -217,7 +223,7 @@ impl LightPasses {
         self.tile_bin.prepare(ctx, frame)?;
         self.resolve.prepare(ctx, frame)?;
         if let Some(sl) = soft {
-            self.soft_occlusion.prepare(ctx, frame, sl)?;
+            self.soft_occlusion.prepare(ctx, frame, sl, alpha_casters)?;
         }
         Ok(())
     }
@@ -292,4 +298,74 @@ impl LightPasses {
             soft: soft_out,
         })
     }
+}
+
+/// One round of casters: each caster's planes and its projection or
+/// influence region (§3.3, §4.1), conservatively rasterized and binned per
+/// tile, less the tiles whose box it cannot shadow (§3.2); then every
+/// listed view sample against its tile's casters (§3.3, §4.2): one bit, or
+/// a light-sample bitmask ORed over the casters (and over the rounds
+/// before, unless `first`). `Some` when the binned pairs pass the binding
+/// limit: the triangles must run in smaller batches.
+fn cast(
+    r: &mut Recording,
+    (light_view, texel_lists, clusters, plane_lut): (
+        &LightViewPass,
+        &TexelListPass,
+        &ClusterPass,
+        &PlaneLutPass,
+    ),
+    (casters, tile_bin, occlusion, soft_occlusion): (
+        &mut CasterPass,
+        &mut TileBinPass,
+        &mut OcclusionPass,
+        &mut SoftOcclusionPass,
+    ),
+    counters: &GrowBuffer,
+    soft: Option<&SoftLight>,
+    first: bool,
+) -> Result<Option<Ran>> {
+    tile_bin.record_clears(&mut r.cmd)?;
+    r.cmd.barrier(Barrier::TransferToCompute);
+    casters.record(r, &light_view.faces, counters)?;
+    let bins = (&*casters, texel_lists, clusters);
+    tile_bin.record_count(r, bins, counters, soft)?;
+    r.submit()?;
+    // Only now is the number of binned pairs known: past the binding
+    // limit, the triangles run again in smaller batches.
+    let totals = tile_bin.totals(r.ctx, &r.frame)?;
+    let binned_bytes = 4 * totals.pairs as u64;
+    let max_range = r.ctx.info().limits.max_storage_buffer_range as u64;
+    if binned_bytes > max_range && r.frame.nt > 1 {
+        return Ok(Some(Ran::TooManyPairs { binned_bytes }));
+    }
+    tile_bin.record_scatter(r, totals, bins, counters)?;
+    r.frame.set_units(totals.units);
+    match soft {
+        None => occlusion.record(r, (texel_lists, casters, tile_bin), counters, first)?,
+        Some(sl) => {
+            let inputs = (texel_lists, &*casters, &*tile_bin, clusters);
+            soft_occlusion.record(r, sl, plane_lut.table(), inputs, counters, first)?;
+        }
+    }
+    Ok(None)
+}
+
+/// Between rounds: adds the counters so far to `carried` and zeroes them
+/// (the next round's casters count their pairs from 0).
+fn carry_counters(
+    r: &mut Recording,
+    counters: &GrowBuffer,
+    carried: &mut [u32; counter::COUNT],
+) -> Result<()> {
+    r.submit()?;
+    let c: Vec<u32> = r
+        .ctx
+        .read_buffer_staged(counters.buffer(), 0, counter::COUNT)?;
+    for (k, v) in carried.iter_mut().zip(c) {
+        *k = k.saturating_add(v);
+    }
+    r.cmd.fill_buffer(counters.slice(), 0)?;
+    r.cmd.barrier(Barrier::TransferToCompute);
+    Ok(())
 }

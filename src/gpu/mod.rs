@@ -26,6 +26,7 @@
 //! compiled by `build.rs`) and [`shared`] (Rust twins of the shaders'
 //! structs).
 
+pub mod alpha;
 pub mod batches;
 pub mod casters;
 pub mod clusters;

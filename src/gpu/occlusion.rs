@@ -5,7 +5,7 @@
 //! [`crate::cpu::occlusion`].
 
 use crate::gpu::dispatch::{groups_2d, storage, RGBA32UI};
-use crate::gpu::light_frame::Recording;
+use crate::gpu::light_frame::{CasterRound, Recording};
 use crate::gpu::shaders;
 use crate::gpu::shared::LightPush;
 use crate::gpu::{casters::CasterPass, texel_lists::TexelListPass, tile_bin::TileBinPass};
@@ -15,9 +15,11 @@ use crate::vulkan::{
 };
 use crate::Result;
 
-/// The occlusion pipeline and the shadow flags it sets.
+/// The occlusion pipelines and the shadow flags they set.
 pub struct OcclusionPass {
-    occlusion: ComputePipeline,
+    /// Opaque casters, and the alpha-tested casters' round (their alpha
+    /// tests: specialization constant `ALPHA`).
+    occlusion: [ComputePipeline; 2],
     /// Per list slot: non-zero when some caster blocks the light.
     pub shadowed: GrowBuffer,
 }
@@ -27,30 +29,44 @@ impl OcclusionPass {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let sb = DescriptorKind::StorageBuffer;
         let tb = DescriptorKind::UniformTexelBuffer;
-        Ok(OcclusionPass {
-            occlusion: ctx.create_compute_pipeline(&ComputePipelineDesc {
-                name: "occlusion",
+        let make = |alpha: bool| {
+            ctx.create_compute_pipeline(&ComputePipelineDesc {
+                name: if alpha {
+                    "occlusion_alpha"
+                } else {
+                    "occlusion"
+                },
                 spirv: shaders::OCCLUSION,
-                bindings: &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb],
+                bindings: &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, tb, tb, tb, tb],
                 push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
-                specialization: &[],
-            })?,
+                specialization: &[(5, alpha as u32)],
+            })
+        };
+        Ok(OcclusionPass {
+            occlusion: [make(false)?, make(true)?],
             shadowed: GrowBuffer::storage("shadowed"),
         })
     }
 
     /// Records the occlusion of every listed sample by its tile's casters
-    /// (once the work units are known).
+    /// (once the work units are known), ORed into the flags of the rounds
+    /// before unless `first`.
     pub fn record(
         &mut self,
         r: &mut Recording,
         (lists, casters, bins): (&TexelListPass, &CasterPass, &TileBinPass),
         counters: &GrowBuffer,
+        first: bool,
     ) -> Result<()> {
         self.shadowed.get(r.ctx, 4 * r.frame.n as u64)?;
-        r.cmd.fill_buffer(self.shadowed.slice(), 0)?;
+        if first {
+            r.cmd.fill_buffer(self.shadowed.slice(), 0)?;
+        }
         r.cmd.barrier(Barrier::TransferToCompute);
         let (shadowed, units) = (&self.shadowed, r.frame.units());
+        let pipeline = &self.occlusion[usize::from(r.round == CasterRound::Alpha)];
+        let triangles = r.inputs.triangles;
+        let [records, textures, alphas] = r.inputs.alpha.bindings();
         r.pass("occlusion", |rec, pc| {
             let bindings = [
                 Binding::uniform_texel(&casters.pairs, RGBA32UI),
@@ -63,8 +79,12 @@ impl OcclusionPass {
                 storage(shadowed),
                 storage(counters),
                 storage(&bins.unit_offsets),
+                Binding::uniform_texel(triangles, RGBA32UI),
+                records,
+                textures,
+                alphas,
             ];
-            rec.dispatch(&self.occlusion, &bindings, pc, groups_2d(units.max(1)))?;
+            rec.dispatch(pipeline, &bindings, pc, groups_2d(units.max(1)))?;
             rec.barrier(Barrier::ComputeToCompute);
             Ok(())
         })

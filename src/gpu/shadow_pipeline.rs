@@ -3,7 +3,9 @@
 //! splits runs too large for one binding into [`batches`](crate::gpu::batches)
 //! and runs [`LightPasses::run`], the passes in order.
 
+use crate::cpu::alpha::AlphaTables;
 use crate::cpu::light_view::LightView;
+use crate::gpu::alpha::{AlphaBuffers, AlphaInputs};
 use crate::gpu::batches::{Batches, RunOf};
 use crate::gpu::light_frame::LightInputs;
 use crate::gpu::light_passes::{LightPasses, ShadowOutput};
@@ -20,6 +22,8 @@ pub struct ShadowPipeline {
     /// View samples and triangles uploaded by [`ShadowPipeline::run`].
     uploaded_samples: GrowBuffer,
     uploaded_triangles: GrowBuffer,
+    /// The alpha-tested casters' tables ([`ShadowPipeline::set_alpha`]).
+    alpha: AlphaBuffers,
 }
 
 impl ShadowPipeline {
@@ -30,7 +34,25 @@ impl ShadowPipeline {
             batches: Batches::new(),
             uploaded_samples: GrowBuffer::storage("view_samples"),
             uploaded_triangles: GrowBuffer::storage("triangles"),
+            alpha: AlphaBuffers::new(),
         })
+    }
+
+    /// The alpha tests of the triangles the next runs take (their
+    /// [`GpuTriangle`]s marked by [`crate::gpu::alpha::mark_alpha_triangles`]
+    /// with the same tables); empty tables: every caster is opaque. Runs
+    /// before the first call have no alpha-tested casters.
+    pub fn set_alpha(&mut self, ctx: &GpuContext, tables: &AlphaTables) -> Result<()> {
+        self.alpha.upload(ctx, tables)
+    }
+
+    /// The tables of the last [`ShadowPipeline::set_alpha`] (a placeholder
+    /// without alpha-tested triangles) and whether there are any.
+    ///
+    /// # Panics
+    /// Before the first `set_alpha` or run.
+    pub fn alpha(&self) -> (AlphaInputs<'_>, bool) {
+        (self.alpha.inputs(), self.alpha.present())
     }
 
     /// Shadows of `view_samples` (camera-relative) from `light` with the
@@ -53,12 +75,17 @@ impl ShadowPipeline {
             .uploaded_triangles
             .get(ctx, 48 * triangles.len() as u64)?;
         ctx.upload_staged(tris, 0, triangles)?;
+        if !self.alpha.uploaded() {
+            self.alpha.upload(ctx, &AlphaTables::default())?;
+        }
         let inputs = LightInputs {
             samples: self.uploaded_samples.slice(),
             n: count(view_samples.len(), "view samples")?,
             triangles: self.uploaded_triangles.slice(),
             nt: count(triangles.len(), "triangles")?,
             triangle_base: 0,
+            alpha: self.alpha.inputs(),
+            alpha_casters: self.alpha.present(),
         };
         run_checked(
             &mut self.passes,
@@ -88,12 +115,17 @@ impl ShadowPipeline {
         resolution: u32,
         soft: Option<&SoftLight>,
     ) -> Result<ShadowOutput> {
+        if !self.alpha.uploaded() {
+            self.alpha.upload(ctx, &AlphaTables::default())?;
+        }
         let inputs = LightInputs {
             samples: samples.whole(),
             n: count(n, "view samples")?,
             triangles: triangles.whole(),
             nt: count(nt, "triangles")?,
             triangle_base: 0,
+            alpha: self.alpha.inputs(),
+            alpha_casters: self.alpha.present(),
         };
         run_checked(
             &mut self.passes,

@@ -79,8 +79,9 @@ pub struct GpuTriangle {
     pub mesh: u32,
     /// Vertex 2 (`v2_pad.xyz`).
     pub v2: [f32; 3],
-    /// Reserved, 0 (`v2_pad.w`).
-    pub reserved: u32,
+    /// With [`TRIANGLE_ALPHA`]: the triangle's alpha-test record
+    /// (`cpu::alpha::AlphaTables`); else 0 (`v2_pad.w`).
+    pub alpha_record: u32,
 }
 
 /// `FrameConstants`: the per-frame uniform buffer (std140, 160 bytes).
@@ -127,7 +128,7 @@ impl GpuTriangle {
             v1: v[1].to_array(),
             mesh,
             v2: v[2].to_array(),
-            reserved: 0,
+            alpha_record: 0,
         }
     }
 }
@@ -144,6 +145,9 @@ const _: () = assert!(std::mem::size_of::<FrameConstants>() == 160);
 pub const NOT_LISTED: u32 = u32::MAX;
 /// `TRIANGLE_CLOSED`: [`GpuTriangle::flags`] bit of triangles of closed meshes.
 pub const TRIANGLE_CLOSED: u32 = 4;
+/// `TRIANGLE_ALPHA` (alpha_common.glsl): [`GpuTriangle::flags`] bit of
+/// alpha-tested triangles, whose record is [`GpuTriangle::alpha_record`].
+pub const TRIANGLE_ALPHA: u32 = 8;
 /// Counter slots of the shadow passes (`COUNTER_*`).
 pub mod counter {
     /// (Caster, light face) pairs the caster passes appended, including

@@ -48,6 +48,18 @@ impl SoftLight {
         self.mode != SoftMode::Exact
     }
 
+    /// The light as round `round` of the passes takes it: alpha-tested
+    /// casters are tested per light sample (look-up mode: every bit the
+    /// table leaves possible goes to the unsure list), so the approximate
+    /// mode's round of them runs in exact mode.
+    pub fn for_round(&self, round: crate::gpu::light_frame::CasterRound) -> SoftLight {
+        let mut sl = self.clone();
+        if round == crate::gpu::light_frame::CasterRound::Alpha && sl.mode == SoftMode::Approx {
+            sl.mode = SoftMode::Exact;
+        }
+        sl
+    }
+
     /// 128-sample blocks of the light.
     pub fn blocks(&self) -> usize {
         self.samples.len().div_ceil(128)

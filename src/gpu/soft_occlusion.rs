@@ -13,7 +13,7 @@
 use crate::gpu::clusters::ClusterPass;
 use crate::gpu::dispatch::{groups, groups_2d, storage, RGBA32UI};
 use crate::gpu::light_frame::LightFrame;
-use crate::gpu::light_frame::Recording;
+use crate::gpu::light_frame::{CasterRound, Recording};
 use crate::gpu::shaders;
 use crate::gpu::shared::{counter, LightPush};
 use crate::gpu::soft_light::{SoftLight, SoftMode, MAX_SOFT_SAMPLES};
@@ -69,41 +69,27 @@ pub struct SoftOcclusionPass {
     pub light_samples: GrowBuffer,
     /// Bound in place of the table in exact mode (a view may not be empty).
     no_table: GrowBuffer,
+    /// The alpha-tested casters' round (specialization constant `ALPHA`):
+    /// look-up mode per block count, exact mode, the unsure tests; made
+    /// when a run first needs them.
+    sure_alpha: Vec<Option<ComputePipeline>>,
+    exact_alpha: Option<ComputePipeline>,
+    unsure_alpha: Option<ComputePipeline>,
 }
 
 impl SoftOcclusionPass {
     /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let sb = DescriptorKind::StorageBuffer;
-        let tb = DescriptorKind::UniformTexelBuffer;
-        let ub = DescriptorKind::UniformBuffer;
-        let make = |name: &str, spirv, chunk: (u32, u32)| {
-            ctx.create_compute_pipeline(&ComputePipelineDesc {
-                name,
-                spirv,
-                bindings: &[tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb, tb],
-                push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
-                specialization: &[chunk],
-            })
-        };
+        let make = |name: &str, spirv, chunk| occlusion_pipeline(ctx, name, spirv, chunk, false);
         Ok(SoftOcclusionPass {
-            sure: [
-                shaders::SOFT_OCCLUSION_SURE1,
-                shaders::SOFT_OCCLUSION_SURE2,
-                shaders::SOFT_OCCLUSION_SURE3,
-                shaders::SOFT_OCCLUSION_SURE4,
-                shaders::SOFT_OCCLUSION_SURE5,
-                shaders::SOFT_OCCLUSION_SURE6,
-                shaders::SOFT_OCCLUSION_SURE7,
-                shaders::SOFT_OCCLUSION_SURE8,
-            ]
-            .iter()
-            .enumerate()
-            .map(|(b, spirv)| {
-                let name = format!("soft_occlusion_sure{}", b + 1);
-                make(&name, spirv, sure_pair_chunk(b as u32 + 1))
-            })
-            .collect::<Result<_>>()?,
+            sure: SURE_SPIRV
+                .iter()
+                .enumerate()
+                .map(|(b, spirv)| {
+                    let name = format!("soft_occlusion_sure{}", b + 1);
+                    make(&name, spirv, sure_pair_chunk(b as u32 + 1))
+                })
+                .collect::<Result<_>>()?,
             approx: [
                 shaders::SOFT_OCCLUSION_LUT1,
                 shaders::SOFT_OCCLUSION_LUT2,
@@ -126,13 +112,7 @@ impl SoftOcclusionPass {
                 shaders::SOFT_OCCLUSION_EXACT,
                 SOFT_PAIR_CHUNK,
             )?,
-            unsure: ctx.create_compute_pipeline(&ComputePipelineDesc {
-                name: "soft_occlusion_unsure",
-                spirv: shaders::SOFT_OCCLUSION_UNSURE,
-                bindings: &[tb, tb, tb, sb, ub],
-                push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
-                specialization: &[],
-            })?,
+            unsure: unsure_pipeline(ctx, false)?,
             unsure_list: GrowBuffer::storage("unsure_list"),
             counters_before: GrowBuffer::storage("counters_before_occlusion"),
             last_ranges: (0, Vec::new()),
@@ -140,12 +120,46 @@ impl SoftOcclusionPass {
             blocked: GrowBuffer::storage("blocked_masks"),
             light_samples: GrowBuffer::storage_uniform("light_samples"),
             no_table: GrowBuffer::storage("plane_lut_unused"),
+            sure_alpha: (0..8).map(|_| None).collect(),
+            exact_alpha: None,
+            unsure_alpha: None,
         })
+    }
+
+    /// Makes the alpha round's pipelines that `sl`'s mode needs.
+    fn make_alpha_pipelines(&mut self, ctx: &GpuContext, sl: &SoftLight) -> Result<()> {
+        let blocks = sl.blocks();
+        if sl.mode == SoftMode::Lut {
+            if self.sure_alpha[blocks - 1].is_none() {
+                let name = format!("soft_occlusion_sure{blocks}_alpha");
+                let spirv = SURE_SPIRV[blocks - 1];
+                let chunk = sure_pair_chunk(blocks as u32);
+                self.sure_alpha[blocks - 1] =
+                    Some(occlusion_pipeline(ctx, &name, spirv, chunk, true)?);
+            }
+            if self.unsure_alpha.is_none() {
+                self.unsure_alpha = Some(unsure_pipeline(ctx, true)?);
+            }
+        } else if self.exact_alpha.is_none() {
+            let (name, spirv) = ("soft_occlusion_exact_alpha", shaders::SOFT_OCCLUSION_EXACT);
+            self.exact_alpha = Some(occlusion_pipeline(ctx, name, spirv, SOFT_PAIR_CHUNK, true)?);
+        }
+        Ok(())
     }
 
     /// Sizes the buffers and uploads the light samples (before the run's
     /// first recording).
-    pub fn prepare(&mut self, ctx: &GpuContext, frame: &LightFrame, sl: &SoftLight) -> Result<()> {
+    /// With `alpha_casters`, makes the alpha round's pipelines too.
+    pub fn prepare(
+        &mut self,
+        ctx: &GpuContext,
+        frame: &LightFrame,
+        sl: &SoftLight,
+        alpha_casters: bool,
+    ) -> Result<()> {
+        if alpha_casters {
+            self.make_alpha_pipelines(ctx, &sl.for_round(CasterRound::Alpha))?;
+        }
         self.blocked
             .get(ctx, 4 * frame.mask_words * frame.n as u64)?;
         let ubo = self.light_samples.get(ctx, 16 * MAX_SOFT_SAMPLES as u64)?;
@@ -175,18 +189,25 @@ impl SoftOcclusionPass {
         table: Option<&Buffer>,
         passes: SoftInputs,
         counters: &GrowBuffer,
+        first: bool,
     ) -> Result<()> {
         let blocks = sl.blocks();
+        if first {
+            r.cmd.fill_buffer(self.blocked.slice(), 0)?;
+        }
+        let alpha = r.round == CasterRound::Alpha;
         match sl.mode {
             SoftMode::Exact => {
-                r.cmd.fill_buffer(self.blocked.slice(), 0)?;
+                let exact = match alpha {
+                    true => self.exact_alpha.as_ref().ok_or_else(not_made)?,
+                    false => &self.exact,
+                };
                 for block in 0..blocks as u32 {
-                    self.occlusion_block(r, &self.exact, block, None, passes, counters)?;
+                    self.occlusion_block(r, exact, block, None, passes, counters)?;
                 }
                 Ok(())
             }
             SoftMode::Approx => {
-                r.cmd.fill_buffer(self.blocked.slice(), 0)?;
                 let pipeline = &self.approx[blocks - 1];
                 let all = (0, r.frame.units());
                 self.occlusion(r, pipeline, all, table, passes, counters)
@@ -204,10 +225,12 @@ impl SoftOcclusionPass {
         counters: &GrowBuffer,
     ) -> Result<()> {
         let blocks = sl.blocks();
-        let sure = &self.sure[blocks - 1];
+        let sure = match r.round == CasterRound::Alpha {
+            true => self.sure_alpha[blocks - 1].as_ref().ok_or_else(not_made)?,
+            false => &self.sure[blocks - 1],
+        };
         let units = r.frame.units();
         let listed_at = 4 * counter::UNSURE_PAIRS as u64;
-        r.cmd.fill_buffer(self.blocked.slice(), 0)?;
         // The units in ranges, each followed by the exact tests of its
         // unsure list. A unit lists at most one entry per lane, pair and
         // block, so the first range is as long as that bound allows; later
@@ -282,6 +305,11 @@ impl SoftOcclusionPass {
         let samples = &lists.list_samples;
         let mut push = r.frame.push;
         push.more[3] = listed as u32;
+        let unsure = match r.round == CasterRound::Alpha {
+            true => self.unsure_alpha.as_ref().ok_or_else(not_made)?,
+            false => &self.unsure,
+        };
+        let [records, textures, alphas] = r.inputs.alpha.bindings();
         r.pass("occlusion_unsure", |rec, _| {
             let bindings = [
                 Binding::uniform_texel(list, RGBA32UI),
@@ -289,9 +317,12 @@ impl SoftOcclusionPass {
                 Binding::uniform_texel(samples, RGBA32UI),
                 storage(&self.blocked),
                 Binding::uniform(&self.light_samples),
+                records,
+                textures,
+                alphas,
             ];
             let groups = groups(listed as u32);
-            rec.dispatch(&self.unsure, &bindings, bytemuck::bytes_of(&push), groups)?;
+            rec.dispatch(unsure, &bindings, bytemuck::bytes_of(&push), groups)?;
             rec.barrier(Barrier::ComputeToCompute);
             Ok(())
         })
@@ -343,6 +374,7 @@ impl SoftOcclusionPass {
         r.cmd.barrier(Barrier::TransferToCompute);
         let table = table.map_or(self.no_table.slice(), |t| t.into());
         let triangles = r.inputs.triangles;
+        let [records, textures, alphas] = r.inputs.alpha.bindings();
         r.pass("occlusion", |rec, pc| {
             let mut push: LightPush = bytemuck::pod_read_unaligned(pc);
             push.soft[0] = block;
@@ -362,6 +394,9 @@ impl SoftOcclusionPass {
                 Binding::uniform_texel(table, RGBA32UI),
                 storage(&self.unsure_list),
                 Binding::uniform_texel(&clusters.boxes, RGBA32UI),
+                records,
+                textures,
+                alphas,
             ];
             let groups = groups_2d(len.max(1));
             rec.dispatch(pipeline, &bindings, bytemuck::bytes_of(&push), groups)?;
@@ -369,6 +404,59 @@ impl SoftOcclusionPass {
             Ok(())
         })
     }
+}
+
+/// Look-up mode's occlusion shaders, per block count.
+const SURE_SPIRV: [&[u32]; 8] = [
+    shaders::SOFT_OCCLUSION_SURE1,
+    shaders::SOFT_OCCLUSION_SURE2,
+    shaders::SOFT_OCCLUSION_SURE3,
+    shaders::SOFT_OCCLUSION_SURE4,
+    shaders::SOFT_OCCLUSION_SURE5,
+    shaders::SOFT_OCCLUSION_SURE6,
+    shaders::SOFT_OCCLUSION_SURE7,
+    shaders::SOFT_OCCLUSION_SURE8,
+];
+
+/// A soft occlusion pipeline: `chunk` pairs per work unit (specialization
+/// constant 2), `alpha` the alpha-tested casters' round (constant 5).
+fn occlusion_pipeline(
+    ctx: &GpuContext,
+    name: &str,
+    spirv: &[u32],
+    chunk: (u32, u32),
+    alpha: bool,
+) -> Result<ComputePipeline> {
+    let sb = DescriptorKind::StorageBuffer;
+    let tb = DescriptorKind::UniformTexelBuffer;
+    let ub = DescriptorKind::UniformBuffer;
+    ctx.create_compute_pipeline(&ComputePipelineDesc {
+        name,
+        spirv,
+        bindings: &[
+            tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb, tb, tb, tb, tb,
+        ],
+        push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
+        specialization: &[chunk, (5, alpha as u32)],
+    })
+}
+
+/// The unsure tests' pipeline (`alpha`: the alpha-tested casters' round).
+fn unsure_pipeline(ctx: &GpuContext, alpha: bool) -> Result<ComputePipeline> {
+    let sb = DescriptorKind::StorageBuffer;
+    let tb = DescriptorKind::UniformTexelBuffer;
+    let ub = DescriptorKind::UniformBuffer;
+    ctx.create_compute_pipeline(&ComputePipelineDesc {
+        name: if alpha {
+            "soft_occlusion_unsure_alpha"
+        } else {
+            "soft_occlusion_unsure"
+        },
+        spirv: shaders::SOFT_OCCLUSION_UNSURE,
+        bindings: &[tb, tb, tb, sb, ub, tb, tb, tb],
+        push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
+        specialization: &[(5, alpha as u32)],
+    })
 }
 
 /// The units from `start` whose entries, by the last run's ranges `plan`
@@ -390,4 +478,9 @@ fn planned_len(plan: &[(u32, u32, u64)], start: u32, capacity: u64) -> Option<u3
         end = s + l;
     }
     (!plan.is_empty()).then_some((end - start).max(1))
+}
+
+/// A round's pipeline that `prepare` did not make.
+fn not_made() -> crate::Error {
+    crate::Error::InvalidInput("the alpha-tested casters' pipelines were not prepared".into())
 }

@@ -25,6 +25,8 @@
 
 use glam::DVec3;
 
+use crate::gpu::alpha::AlphaInputs;
+use crate::gpu::dispatch::RGBA32UI;
 use crate::gpu::shaders;
 #[cfg(doc)]
 use crate::gpu::shared::VIEW_SAMPLE_VALID;
@@ -37,7 +39,7 @@ use crate::vulkan::{
 };
 use crate::{Error, Result};
 
-/// Push constants of `view_samples.vert`.
+/// Push constants of `view_samples.vert` and `view_samples.frag`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 struct RasterPush {
@@ -47,19 +49,22 @@ struct RasterPush {
     down: [f32; 4],
     /// xyz: forward; w: near.
     forward: [f32; 4],
+    /// The pixel rays of the fragment shader's alpha test.
+    ray: ViewRay,
 }
 
-/// Push constants of `view_samples_resolve.comp`.
+/// `ViewRay` (`view_ray.glsl`): the camera as the pixel rays need it; the
+/// push constants of `view_samples_resolve.comp`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct ResolvePush {
+struct ViewRay {
     /// xyz: right; w: tan(fov/2) · aspect.
     right: [f32; 4],
     /// xyz: up; w: tan(fov/2).
     up: [f32; 4],
     /// xyz: forward.
     forward: [f32; 4],
-    /// width, height, triangles, 0.
+    /// width, height, triangles, 1 when some triangle is alpha-tested.
     sizes: [u32; 4],
 }
 
@@ -84,6 +89,8 @@ pub struct ViewSamplePass {
     ids: GrowBuffer,
     /// The view samples.
     samples: GrowBuffer,
+    /// Bound in place of the alpha tables when there are none.
+    none: GrowBuffer,
     profiler: Profiler,
 }
 
@@ -107,6 +114,7 @@ impl ViewSamplePass {
             depth: Some((DEPTH_FORMAT, vk::CompareOp::GREATER)),
             cull_mode: vk::CullModeFlags::NONE,
             push_constant_bytes: std::mem::size_of::<RasterPush>() as u32,
+            bindings: &[DescriptorKind::UniformTexelBuffer; 4],
         })?;
         let resolve = ctx.create_compute_pipeline(&ComputePipelineDesc {
             name: "view_samples_resolve",
@@ -116,7 +124,7 @@ impl ViewSamplePass {
                 DescriptorKind::UniformTexelBuffer,
                 DescriptorKind::StorageBuffer,
             ],
-            push_constant_bytes: std::mem::size_of::<ResolvePush>() as u32,
+            push_constant_bytes: std::mem::size_of::<ViewRay>() as u32,
             specialization: &[],
         })?;
         let mut triangles = BufferDesc::storage("view_triangles", 0);
@@ -128,6 +136,7 @@ impl ViewSamplePass {
             triangles: GrowBuffer::new(triangles),
             ids: GrowBuffer::storage("view_sample_ids"),
             samples: GrowBuffer::storage("view_samples"),
+            none: GrowBuffer::storage("view_alpha_none"),
             profiler: Profiler::new(ctx, 1)?,
         })
     }
@@ -156,12 +165,17 @@ impl ViewSamplePass {
     /// call), and returns it with the GPU milliseconds of the raster and
     /// resolve steps (NaN when the device has no timestamps). Uploading the
     /// triangles is not timed.
+    /// With `alpha`, the triangles marked
+    /// [`crate::gpu::shared::TRIANGLE_ALPHA`] are seen only where its tests
+    /// find them opaque; without, every triangle is opaque.
     pub fn render(
         &mut self,
         ctx: &GpuContext,
         camera: &Camera,
         triangles: &[GpuTriangle],
+        alpha: Option<AlphaInputs>,
     ) -> Result<(&Buffer, f64)> {
+        let any_alpha = alpha.is_some();
         camera.validate()?;
         let (width, height) = (camera.width, camera.height);
         let pixels = width as u64 * height as u64;
@@ -196,16 +210,17 @@ impl ViewSamplePass {
             .filter(|l| l.is_finite())
             .fold(0.0f32, f32::max);
         let near = if far > 0.0 { far * 1e-6 } else { 1e-6 };
+        let resolve_push = ViewRay {
+            right: v4(r, tan_half * aspect),
+            up: v4(u, tan_half),
+            forward: v4(f, 0.0),
+            sizes: [width, height, nt, any_alpha as u32],
+        };
         let raster_push = RasterPush {
             right: v4(r / (tan_half * aspect), 0.0),
             down: v4(-u / tan_half, 0.0),
             forward: [f.x as f32, f.y as f32, f.z as f32, near],
-        };
-        let resolve_push = ResolvePush {
-            right: v4(r, tan_half * aspect),
-            up: v4(u, tan_half),
-            forward: v4(f, 0.0),
-            sizes: [width, height, nt, 0],
+            ray: resolve_push,
         };
 
         self.ensure_targets(ctx, [width, height])?;
@@ -233,12 +248,27 @@ impl ViewSamplePass {
                 },
             },
         ];
+        let tri_bits = tri_buf.slice(0, 48 * nt.max(1) as u64)?;
+        self.none.get(ctx, 16)?;
+        let none = self.none.slice();
+        let placeholder = AlphaInputs {
+            records: none,
+            textures: none,
+            alphas: none,
+        };
+        let [records, textures, alphas] = alpha.unwrap_or(placeholder).bindings();
+        let raster_bindings = [
+            Binding::uniform_texel(tri_bits, RGBA32UI),
+            records,
+            textures,
+            alphas,
+        ];
         rec.draw_pass(
             &self.raster,
             &targets.framebuffer,
             &clear,
             Some(tri_buf),
-            bytemuck::bytes_of(&raster_push),
+            (bytemuck::bytes_of(&raster_push), &raster_bindings),
             3 * nt,
         )?;
         rec.copy_attachment_to_buffer(&targets.ids, 4, ids_buf)?;

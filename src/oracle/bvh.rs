@@ -247,7 +247,15 @@ impl Bvh {
 
     /// The nearest hit with `t_min < t < t_max`; equal distances resolve
     /// to the smaller global id.
-    pub fn nearest(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<NearestHit> {
+    /// Hits that `accept` (leaf-ordered index, hit) refuses are passed
+    /// through (alpha-tested triangles where they are not opaque).
+    pub fn nearest(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        accept: &dyn Fn(u32, &Hit) -> bool,
+    ) -> Option<NearestHit> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -267,7 +275,10 @@ impl Bvh {
                     } else {
                         t_best
                     };
-                    if let Some(h) = ray.intersect(&self.tris[i as usize], t_min, hi) {
+                    if let Some(h) = ray
+                        .intersect(&self.tris[i as usize], t_min, hi)
+                        .filter(|h| accept(i, h))
+                    {
                         let better = match best {
                             None => true,
                             Some(b) => {
@@ -327,12 +338,25 @@ impl Bvh {
     /// `t_min < t < t_max`. `hint` is a leaf-ordered triangle index tested
     /// first (the last occluder found, or `u32::MAX`); it is updated to the
     /// occluder found.
-    pub fn any_hit(&self, ray: &Ray, t_min: f64, t_max: f64, ignore: u32, hint: &mut u32) -> bool {
+    /// Hits that `accept` refuses do not count.
+    pub fn any_hit(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        ignore: u32,
+        hint: &mut u32,
+        accept: &dyn Fn(u32, &Hit) -> bool,
+    ) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
         if let Some(tri) = self.tris.get(*hint as usize) {
-            if self.ids[*hint as usize] != ignore && ray.intersect(tri, t_min, t_max).is_some() {
+            if self.ids[*hint as usize] != ignore
+                && ray
+                    .intersect(tri, t_min, t_max)
+                    .is_some_and(|h| accept(*hint, &h))
+            {
                 return true;
             }
         }
@@ -346,10 +370,10 @@ impl Bvh {
             let node = &self.nodes[ni as usize];
             if node.count > 0 {
                 for i in node.first..node.first + node.count {
-                    if ray
-                        .intersect(&self.tris[i as usize], t_min, t_max)
-                        .is_some()
-                        && self.ids[i as usize] != ignore
+                    if self.ids[i as usize] != ignore
+                        && ray
+                            .intersect(&self.tris[i as usize], t_min, t_max)
+                            .is_some_and(|h| accept(i, &h))
                     {
                         *hint = i;
                         return true;

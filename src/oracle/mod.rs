@@ -53,6 +53,7 @@
 //! found, trying the previous pixel's occluder first).
 
 mod bvh;
+mod coverage;
 mod intersect;
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -63,7 +64,8 @@ use rayon::prelude::*;
 use crate::light::LightSamples;
 use crate::scene::{Camera, SceneTriangle};
 use bvh::Bvh;
-use intersect::Ray;
+use coverage::Coverage;
+use intersect::{Hit, Ray};
 
 /// The `triangle` of a view sample that lies on no scene triangle (a
 /// user-supplied sample): no triangle is ignored for it.
@@ -181,6 +183,9 @@ pub struct Oracle {
     /// Diagonal of the bounding box of the usable triangles.
     extent: f64,
     shadow_rays: AtomicU64,
+    /// Per global id: the alpha test of an alpha-tested triangle (a hit
+    /// where it is not opaque is no hit), `None` for opaque ones.
+    coverage: Vec<Option<Coverage>>,
 }
 
 impl std::fmt::Debug for Oracle {
@@ -214,6 +219,15 @@ impl Oracle {
         );
         let mut tris = Vec::with_capacity(triangles.len());
         let mut ids = Vec::with_capacity(triangles.len());
+        let coverage = triangles
+            .iter()
+            .map(|t| {
+                t.alpha.as_ref().map(|(test, uvs)| Coverage {
+                    test: test.clone(),
+                    uvs: *uvs,
+                })
+            })
+            .collect();
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
         for (id, t) in triangles.iter().enumerate() {
@@ -243,6 +257,16 @@ impl Oracle {
             triangle_count: triangles.len(),
             extent,
             shadow_rays: AtomicU64::new(0),
+            coverage,
+        }
+    }
+
+    /// Whether a hit of leaf-ordered triangle `index` counts: everywhere
+    /// on opaque triangles, where the alpha test passes on the others.
+    fn opaque_hit(&self, index: u32, hit: &Hit) -> bool {
+        match self.coverage.get(self.bvh.id(index) as usize) {
+            Some(Some(c)) => c.opaque(hit.b1, hit.b2),
+            _ => true,
         }
     }
 
@@ -286,7 +310,8 @@ impl Oracle {
             return None;
         }
         let ray = Ray::new(eye, dir);
-        let hit = self.bvh.nearest(&ray, 0.0, f64::INFINITY)?;
+        let accept = |i: u32, h: &Hit| self.opaque_hit(i, h);
+        let hit = self.bvh.nearest(&ray, 0.0, f64::INFINITY, &accept)?;
         let v = self.bvh.triangle(hit.index).map(DVec3::from_array);
         let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
         let p = v[0] + e1 * hit.hit.b1 + e2 * hit.hit.b2;
@@ -462,7 +487,10 @@ impl Oracle {
         }
         *traced += 1;
         let ray = Ray::new(v.p, d);
-        !self.bvh.any_hit(&ray, t_min, t_max, v.ignore, hint)
+        let accept = |i: u32, h: &Hit| self.opaque_hit(i, h);
+        !self
+            .bvh
+            .any_hit(&ray, t_min, t_max, v.ignore, hint, &accept)
     }
 }
 
@@ -550,10 +578,13 @@ mod tests {
                     any = true;
                 }
             }
-            let got = bvh.nearest(&ray, 0.0, f64::INFINITY);
+            let got = bvh.nearest(&ray, 0.0, f64::INFINITY, &|_, _| true);
             assert_eq!(got.map(|h| (h.hit.t, bvh.id(h.index))), best);
             let mut hint = u32::MAX;
-            assert_eq!(bvh.any_hit(&ray, 1e-9, 1.0 - 1e-9, ignore, &mut hint), any);
+            assert_eq!(
+                bvh.any_hit(&ray, 1e-9, 1.0 - 1e-9, ignore, &mut hint, &|_, _| true),
+                any
+            );
             hits += any as usize;
         }
         assert!(hits > 200 && hits < 3800, "{hits}");

@@ -8,7 +8,9 @@ use glam::DVec3;
 
 use super::inputs::{light_view, soft_light, user_gpu_inputs};
 use super::validate::{validate_gpu_inputs, validate_shadow_inputs};
+use crate::cpu::alpha::AlphaTables;
 use crate::cpu::light_view::LightView;
+use crate::gpu::alpha::mark_alpha_triangles;
 use crate::gpu::shared::{GpuTriangle, GpuViewSample};
 use crate::gpu::view_samples::ViewSamplePass;
 use crate::gpu::ShadowPipeline;
@@ -114,8 +116,19 @@ impl Engine {
         let lv = light_view(light, eye).ok_or_else(|| {
             Error::InvalidInput("hard shadows need a point or directional light".into())
         })?;
-        let (vs, ts) = user_gpu_inputs(scene, eye, samples);
-        self.hard_shadows_gpu(&vs, &ts, &lv, light_texels)
+        let (vs, mut ts) = user_gpu_inputs(scene, eye, samples);
+        let tables = AlphaTables::new(scene);
+        mark_alpha_triangles(&mut ts, &tables);
+        validate_gpu_inputs(&vs, &ts, &lv)?;
+        self.shadows.set_alpha(&self.ctx, &tables)?;
+        let out = self
+            .shadows
+            .run(&self.ctx, &vs, &ts, &lv, light_texels, None)?;
+        let stats = ShadowStats::new(&out, light_texels, lv.face_count(), None);
+        Ok(HardShadowResult {
+            lit: out.lit,
+            stats,
+        })
     }
 
     /// Soft-shadow visibility (paper §4) of user-supplied view samples (as in
@@ -133,7 +146,10 @@ impl Engine {
         settings.validate()?;
         let (sl, lv) = soft_light(light, eye, settings)
             .ok_or_else(|| Error::InvalidInput("soft shadows need a light with extent".into()))?;
-        let (vs, ts) = user_gpu_inputs(scene, eye, samples);
+        let (vs, mut ts) = user_gpu_inputs(scene, eye, samples);
+        let tables = AlphaTables::new(scene);
+        mark_alpha_triangles(&mut ts, &tables);
+        self.shadows.set_alpha(&self.ctx, &tables)?;
         let texels = settings.soft_light_texels;
         self.shadows.set_clusters(settings.clusters);
         let out = self
@@ -149,7 +165,8 @@ impl Engine {
         })
     }
 
-    /// [`Engine::hard_shadows`] on inputs already in GPU form.
+    /// [`Engine::hard_shadows`] on inputs already in GPU form (every
+    /// triangle opaque).
     pub fn hard_shadows_gpu(
         &mut self,
         view_samples: &[GpuViewSample],
@@ -158,6 +175,7 @@ impl Engine {
         light_texels: u32,
     ) -> Result<HardShadowResult> {
         validate_gpu_inputs(view_samples, triangles, light)?;
+        self.shadows.set_alpha(&self.ctx, &AlphaTables::default())?;
         let out = self.shadows.run(
             &self.ctx,
             view_samples,

@@ -9,6 +9,8 @@ use glam::Vec3;
 use super::dump_assembly::make_dump;
 use super::inputs::{gpu_triangles, light_view, soft_light};
 use super::{Engine, Frame, FrameOptions};
+use crate::cpu::alpha::AlphaTables;
+use crate::gpu::alpha::mark_alpha_triangles;
 use crate::gpu::gpu_inputs;
 use crate::gpu::view_samples::read_view_samples;
 use crate::oracle::{ViewSample, ViewSamples};
@@ -35,10 +37,19 @@ impl Engine {
         let t0 = Instant::now();
         let before = self.ctx.allocations();
         let eye = desc.camera.eye;
-        let (_, gpu_tris) = gpu_inputs(&[], &gpu_triangles(&desc.scene, eye));
+        let (_, mut gpu_tris) = gpu_inputs(&[], &gpu_triangles(&desc.scene, eye));
+        let alpha = AlphaTables::new(&desc.scene);
+        mark_alpha_triangles(&mut gpu_tris, &alpha);
+        self.shadows.set_alpha(&self.ctx, &alpha)?;
 
         // 1. View samples: rasterized on the GPU, exact ray-plane positions.
-        let (view_buf, view_ms) = self.view.render(&self.ctx, &desc.camera, &gpu_tris)?;
+        let alpha = match self.shadows.alpha() {
+            (tables, true) => Some(tables),
+            _ => None,
+        };
+        let (view_buf, view_ms) = self
+            .view
+            .render(&self.ctx, &desc.camera, &gpu_tris, alpha)?;
         let n = (desc.camera.width * desc.camera.height) as usize;
         let gpu_view = read_view_samples(&self.ctx, view_buf, n)?;
         // The CPU copy (shading, dump) is exactly what the GPU has.

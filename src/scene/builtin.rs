@@ -13,7 +13,7 @@ use std::path::Path;
 
 use glam::{DMat4, DVec2, DVec3};
 
-use super::{AlphaMode, Camera, Material, Mesh, Scene, Texture};
+use super::{AlphaMode, Camera, MagFilter, Material, Mesh, Sampler, Scene, Texture, Wrap};
 use crate::light::{Distribution, Light, LightShape};
 use crate::{Error, Result};
 
@@ -549,7 +549,13 @@ fn fence() -> Builtin {
         base_color_factor: [1.0; 4],
         base_color_texture: Some(Texture {
             source: "generated lattice".into(),
-            image: Some(fence_texture()),
+            image: Some(std::sync::Arc::new(fence_texture())),
+            // A lattice: texels are bars or holes, nothing in between.
+            sampler: Sampler {
+                mag_filter: MagFilter::Nearest,
+                wrap_s: Wrap::ClampToEdge,
+                wrap_t: Wrap::ClampToEdge,
+            },
         }),
     };
     Builtin {

@@ -26,7 +26,9 @@ use gltf::json;
 use json::accessor::{ComponentType, Type};
 use json::validation::Checked;
 
-use super::{is_closed, AlphaMode, Camera, Material, Mesh, Scene, Texture};
+use super::{
+    is_closed, AlphaMode, Camera, MagFilter, Material, Mesh, Sampler, Scene, Texture, Wrap,
+};
 use crate::light::{Distribution, Light, LightShape};
 use crate::{Error, Result};
 
@@ -327,7 +329,7 @@ struct Loader<'a> {
     buffers: Vec<R<Cow<'a, [u8]>>>,
     warnings: Vec<String>,
     /// Decoded base-colour images by image index.
-    images: HashMap<usize, (String, Option<image::RgbaImage>)>,
+    images: HashMap<usize, (String, Option<std::sync::Arc<image::RgbaImage>>)>,
     /// Images already checked for the "not needed but missing" warning.
     checked_unneeded: HashSet<usize>,
 }
@@ -798,6 +800,18 @@ impl<'a> Loader<'a> {
             Some(m) => return Err(format!("material {} does not exist", m.value())),
             None => None,
         };
+        if let Some(m) = material.map(|m| &materials[m]) {
+            let textured = m
+                .base_color_texture
+                .as_ref()
+                .is_some_and(|t| t.image.is_some());
+            if m.alpha_mode != AlphaMode::Opaque && textured && uvs.is_none() {
+                self.warn(format!(
+                    "mesh {name:?}: material {:?} is alpha-tested but the mesh has no TEXCOORD_0: it casts as opaque",
+                    m.name
+                ));
+            }
+        }
 
         let mut mesh = Mesh {
             name: name.to_string(),
@@ -1079,15 +1093,47 @@ impl<'a> Loader<'a> {
             for ti in unneeded.into_iter().flatten() {
                 self.check_unneeded_texture(ti);
             }
-            out.push(Material {
+            let material = Material {
                 name,
                 alpha_mode,
                 alpha_cutoff,
                 base_color_factor: pbr.base_color_factor.0,
                 base_color_texture,
-            });
+            };
+            self.warn_alpha(&material, pbr.base_color_texture.as_ref());
+            out.push(material);
         }
         out
+    }
+
+    /// Says how an alpha-blended or alpha-masked material casts when that
+    /// is not what its file asks for.
+    fn warn_alpha(&mut self, m: &Material, info: Option<&json::texture::Info>) {
+        let name = &m.name;
+        if m.alpha_mode == AlphaMode::Blend {
+            self.warn(format!(
+                "material {name:?}: BLEND is cast and seen as MASK with alphaCutoff 0.5 (shadows are opaque or not)"
+            ));
+        }
+        if m.alpha_mode == AlphaMode::Opaque {
+            return;
+        }
+        if m.base_color_texture
+            .as_ref()
+            .is_some_and(|t| t.image.is_none())
+        {
+            self.warn(format!(
+                "material {name:?}: its base-colour texture is missing, so its alpha test is off: it casts as opaque"
+            ));
+        }
+        if let Some(info) = info {
+            if info.tex_coord != 0 {
+                self.warn(format!(
+                    "material {name:?}: the alpha test reads TEXCOORD_0, not TEXCOORD_{} as the texture asks",
+                    info.tex_coord
+                ));
+            }
+        }
     }
 
     fn base_color_texture(&mut self, material: &str, ti: usize) -> Option<Texture> {
@@ -1108,7 +1154,7 @@ impl<'a> Loader<'a> {
         if !self.images.contains_key(&ii) {
             let (source, result) = self.load_image(ii);
             let image = match result {
-                Ok(img) => Some(img),
+                Ok(img) => Some(std::sync::Arc::new(img)),
                 Err(e) => {
                     self.warn(format!(
                         "material {material:?}: base-colour texture {source} {e}; only the baseColorFactor is used"
@@ -1119,7 +1165,39 @@ impl<'a> Loader<'a> {
             self.images.insert(ii, (source, image));
         }
         let (source, image) = self.images.get(&ii)?.clone();
-        Some(Texture { source, image })
+        let sampler = self.sampler(material, tex.sampler.map(|s| s.value()));
+        Some(Texture {
+            source,
+            image,
+            sampler,
+        })
+    }
+
+    /// The sampler of a texture (glTF's defaults when it names none).
+    fn sampler(&mut self, material: &str, si: Option<usize>) -> Sampler {
+        use json::texture::{MagFilter as Mag, WrappingMode as W};
+        let Some(si) = si else {
+            return Sampler::default();
+        };
+        let Some(s) = self.root.samplers.get(si) else {
+            self.warn(format!(
+                "material {material:?}: sampler {si} does not exist; using LINEAR and REPEAT"
+            ));
+            return Sampler::default();
+        };
+        let wrap = |w: &Checked<W>| match w {
+            Checked::Valid(W::ClampToEdge) => Wrap::ClampToEdge,
+            Checked::Valid(W::MirroredRepeat) => Wrap::MirroredRepeat,
+            _ => Wrap::Repeat,
+        };
+        Sampler {
+            mag_filter: match s.mag_filter {
+                Some(Checked::Valid(Mag::Nearest)) => MagFilter::Nearest,
+                _ => MagFilter::Linear,
+            },
+            wrap_s: wrap(&s.wrap_s),
+            wrap_t: wrap(&s.wrap_t),
+        }
     }
 
     /// Loads and decodes image `ii`: (source description, image or what failed).

@@ -28,13 +28,51 @@ pub enum AlphaMode {
     Blend,
 }
 
-/// A base-colour texture, kept for alpha-masked casters.
+/// A base-colour texture: the picture's colour and alpha-masked casters'
+/// coverage.
 #[derive(Clone, Debug)]
 pub struct Texture {
     /// Where the image came from (a file path, or "embedded").
     pub source: String,
     /// The decoded image; `None` when it could not be loaded (a warning was logged).
-    pub image: Option<image::RgbaImage>,
+    pub image: Option<std::sync::Arc<image::RgbaImage>>,
+    /// How the texture is sampled (glTF `sampler`).
+    pub sampler: Sampler,
+}
+
+/// glTF `magFilter`: how a texture is read between texel centres.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum MagFilter {
+    /// `NEAREST` (9728): the texel the point falls in.
+    Nearest,
+    /// `LINEAR` (9729, and when absent): bilinear between the four nearest
+    /// texel centres.
+    #[default]
+    Linear,
+}
+
+/// glTF `wrapS` / `wrapT`: texture coordinates outside [0, 1].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Wrap {
+    /// `REPEAT` (10497, and when absent).
+    #[default]
+    Repeat,
+    /// `CLAMP_TO_EDGE` (33071).
+    ClampToEdge,
+    /// `MIRRORED_REPEAT` (33648).
+    MirroredRepeat,
+}
+
+/// A glTF sampler as alpha masks use it (`minFilter` is not: coverage is
+/// read at one point, never averaged over a footprint).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Sampler {
+    /// `magFilter`.
+    pub mag_filter: MagFilter,
+    /// `wrapS` (along u).
+    pub wrap_s: Wrap,
+    /// `wrapT` (along v).
+    pub wrap_t: Wrap,
 }
 
 /// A glTF material, reduced to what shadows need.
@@ -52,6 +90,51 @@ pub struct Material {
     pub base_color_factor: [f32; 4],
     /// The glTF `baseColorTexture`; `None` when the material has none.
     pub base_color_texture: Option<Texture>,
+}
+
+/// What an alpha-tested triangle needs to decide where it is opaque: the
+/// coverage at texture coordinates (u, v) is `factor ×` the texture's
+/// alpha there (`crate::cpu::alpha` gives the arithmetic), opaque where at
+/// least `cutoff`.
+#[derive(Clone, Debug)]
+pub struct AlphaTest {
+    /// The material's name, for messages.
+    pub material: String,
+    /// The base-colour texture's image; `None`: the coverage is `factor`
+    /// everywhere.
+    pub image: Option<std::sync::Arc<image::RgbaImage>>,
+    /// How it is sampled.
+    pub sampler: Sampler,
+    /// `alphaCutoff` (0.5 for BLEND materials, cast as MASK).
+    pub cutoff: f32,
+    /// `baseColorFactor`'s alpha.
+    pub factor: f32,
+}
+
+impl Material {
+    /// The alpha test its triangles cast and are seen with, `None` for an
+    /// opaque surface: MASK materials with their `alphaCutoff`; BLEND
+    /// materials as MASK at 0.5 (the loader warns); OPAQUE, and a MASK or
+    /// BLEND material whose texture could not be loaded (the loader warns:
+    /// such a caster is opaque), none.
+    pub fn alpha_test(&self) -> Option<AlphaTest> {
+        let cutoff = match self.alpha_mode {
+            AlphaMode::Opaque => return None,
+            AlphaMode::Mask => self.alpha_cutoff,
+            AlphaMode::Blend => 0.5,
+        };
+        let (image, sampler) = match &self.base_color_texture {
+            Some(t) => (Some(t.image.clone()?), t.sampler),
+            None => (None, Sampler::default()),
+        };
+        Some(AlphaTest {
+            material: self.name.clone(),
+            image,
+            sampler,
+            cutoff,
+            factor: self.base_color_factor[3],
+        })
+    }
 }
 
 impl Default for Material {
@@ -350,16 +433,48 @@ impl Scene {
     /// triangle id used by view samples is the index into this list.
     pub fn triangles(&self) -> Vec<SceneTriangle> {
         let mut out = Vec::with_capacity(self.triangle_count());
+        let tests = self.alpha_tests();
         for (mi, m) in self.meshes.iter().enumerate() {
-            for (ti, _) in m.indices.iter().enumerate() {
+            for (ti, &[a, b, c]) in m.indices.iter().enumerate() {
+                let alpha = tests[mi].as_ref().map(|t| {
+                    let uv = |i: u32| {
+                        m.uvs
+                            .as_ref()
+                            .and_then(|u| u.get(i as usize).copied())
+                            .unwrap_or(DVec2::ZERO)
+                    };
+                    (t.clone(), [a, b, c].map(uv))
+                });
                 out.push(SceneTriangle {
+                    alpha,
                     vertices: m.triangle(ti),
                     mesh: mi as u32,
-                    closed: m.closed,
+                    // An alpha-tested surface has holes: never closed.
+                    closed: m.closed && tests[mi].is_none(),
                 });
             }
         }
         out
+    }
+
+    /// Per mesh, the alpha test its triangles cast with ([`Material::alpha_test`]),
+    /// `None` for opaque meshes: also a mesh without texture coordinates
+    /// whose material would need them (opaque, with a warning at load).
+    pub fn alpha_tests(&self) -> Vec<Option<std::sync::Arc<AlphaTest>>> {
+        let tests: Vec<Option<std::sync::Arc<AlphaTest>>> = self
+            .materials
+            .iter()
+            .map(|m| m.alpha_test().map(std::sync::Arc::new))
+            .collect();
+        self.meshes
+            .iter()
+            .map(|m| {
+                let t = tests.get(m.material?)?.clone()?;
+                // A texture needs coordinates; a constant coverage does not.
+                let uvs_ok = m.uvs.as_ref().is_some_and(|u| u.len() == m.positions.len());
+                (uvs_ok || t.image.is_none()).then_some(t)
+            })
+            .collect()
     }
 
     /// Per mesh: whether `p` lies inside it (closed meshes only; open ones
@@ -410,12 +525,15 @@ fn ray_crosses(p: DVec3, dir: DVec3, v: [DVec3; 3]) -> bool {
 }
 
 /// One triangle of a flattened scene, with the facts the shadow passes need.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct SceneTriangle {
     /// World-space corners, counter-clockwise = front.
     pub vertices: [DVec3; 3],
+    /// Alpha-tested triangles: their test and the texture coordinates of
+    /// their corners (`TEXCOORD_0`); `None`: opaque.
+    pub alpha: Option<(std::sync::Arc<AlphaTest>, [DVec2; 3])>,
     /// Index of the mesh it came from.
     pub mesh: u32,
-    /// Whether that mesh is closed.
+    /// Whether that mesh is closed (and opaque: an alpha-tested mesh never is).
     pub closed: bool,
 }

@@ -11,7 +11,7 @@ use ash::vk;
 use super::barrier::Barrier;
 use super::buffer::{Buffer, BufferSlice};
 use super::device::Device;
-use super::pipeline::{Binding, ComputePipeline, DescriptorKind};
+use super::pipeline::{Binding, ComputePipeline, DescriptorKind, DescriptorLayout};
 use crate::{Error, Result};
 
 /// Descriptors of each kind (and sets) per descriptor pool; more pools are
@@ -234,9 +234,9 @@ impl CommandRecorder {
     }
 
     /// Allocates and writes a descriptor set for `bindings`.
-    fn descriptor_set(
+    pub(crate) fn descriptor_set(
         &mut self,
-        pipeline: &ComputePipeline,
+        pipeline: &dyn DescriptorLayout,
         bindings: &[Binding<'_>],
     ) -> Result<Option<vk::DescriptorSet>> {
         let kinds = pipeline.bindings();
@@ -384,7 +384,7 @@ impl CommandRecorder {
 
     fn allocate_set(
         &mut self,
-        pipeline: &ComputePipeline,
+        pipeline: &dyn DescriptorLayout,
         kinds: &[DescriptorKind],
     ) -> Result<vk::DescriptorSet> {
         let mut need = [0u32; 5];

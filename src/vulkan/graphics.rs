@@ -23,6 +23,7 @@ use super::buffer::Buffer;
 use super::commands::CommandRecorder;
 use super::context::GpuContext;
 use super::device::Device;
+use super::pipeline::{Binding, DescriptorKind, DescriptorLayout};
 use super::shader::ShaderModule;
 use crate::{Error, Result};
 
@@ -220,12 +221,17 @@ pub struct GraphicsPipelineDesc<'a> {
     pub cull_mode: vk::CullModeFlags,
     /// Size of the push-constant block in bytes (0: none), visible to both stages.
     pub push_constant_bytes: u32,
+    /// Kinds of set-0 bindings 0, 1, 2, ... that the fragment shader reads
+    /// (none: no descriptor set).
+    pub bindings: &'a [DescriptorKind],
 }
 
 /// A graphics pipeline with its layout and render pass; destroyed on drop.
 pub struct GraphicsPipeline {
     raw: vk::Pipeline,
     layout: vk::PipelineLayout,
+    set_layout: vk::DescriptorSetLayout,
+    bindings: Vec<DescriptorKind>,
     render_pass: vk::RenderPass,
     color_formats: Vec<vk::Format>,
     depth_format: Option<vk::Format>,
@@ -331,6 +337,8 @@ impl GraphicsPipeline {
         let mut pipeline = GraphicsPipeline {
             raw: vk::Pipeline::null(),
             layout: vk::PipelineLayout::null(),
+            set_layout: vk::DescriptorSetLayout::null(),
+            bindings: desc.bindings.to_vec(),
             render_pass: vk::RenderPass::null(),
             color_formats: desc.color_formats.to_vec(),
             depth_format: desc.depth.map(|(f, _)| f),
@@ -351,7 +359,27 @@ impl GraphicsPipeline {
             offset: 0,
             size: desc.push_constant_bytes,
         }];
+        let layout_bindings: Vec<_> = desc
+            .bindings
+            .iter()
+            .enumerate()
+            .map(|(i, k)| {
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(i as u32)
+                    .descriptor_type(k.vk())
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::FRAGMENT)
+            })
+            .collect();
+        let set_layouts;
         let mut layout_info = vk::PipelineLayoutCreateInfo::default();
+        if !desc.bindings.is_empty() {
+            let set_info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&layout_bindings);
+            pipeline.set_layout = unsafe { d.create_descriptor_set_layout(&set_info, None) }
+                .map_err(|e| err("descriptor set layout", e))?;
+            set_layouts = [pipeline.set_layout];
+            layout_info = layout_info.set_layouts(&set_layouts);
+        }
         if desc.push_constant_bytes > 0 {
             layout_info = layout_info.push_constant_ranges(&ranges);
         }
@@ -522,12 +550,25 @@ impl GraphicsPipeline {
     }
 }
 
+impl DescriptorLayout for GraphicsPipeline {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn bindings(&self) -> &[DescriptorKind] {
+        &self.bindings
+    }
+    fn set_layout(&self) -> vk::DescriptorSetLayout {
+        self.set_layout
+    }
+}
+
 impl Drop for GraphicsPipeline {
     fn drop(&mut self) {
         let d = self.device.raw();
         unsafe {
             d.destroy_pipeline(self.raw, None);
             d.destroy_pipeline_layout(self.layout, None);
+            d.destroy_descriptor_set_layout(self.set_layout, None);
             d.destroy_render_pass(self.render_pass, None);
         }
     }
@@ -564,7 +605,8 @@ impl CommandRecorder {
     /// Records one render pass over the whole `framebuffer`: attachments
     /// cleared to `clear` (one value per attachment, colour ones first),
     /// `vertex_count` vertices drawn (non-indexed) from `vertices` with
-    /// `push` constants. Afterwards colour attachments are in
+    /// `push` constants and the fragment shader's `bindings`. Afterwards
+    /// colour attachments are in
     /// `TRANSFER_SRC_OPTIMAL` and their writes visible to transfers.
     ///
     /// Vertex data written earlier in this recording by a transfer or a
@@ -575,9 +617,10 @@ impl CommandRecorder {
         framebuffer: &Framebuffer,
         clear: &[vk::ClearValue],
         vertices: Option<&Buffer>,
-        push: &[u8],
+        (push, bindings): (&[u8], &[Binding<'_>]),
         vertex_count: u32,
     ) -> Result<()> {
+        let set = self.descriptor_set(pipeline, bindings)?;
         if push.len() as u32 != pipeline.push_constant_bytes() {
             return Err(Error::InvalidInput(format!(
                 "pipeline \"{}\" takes {} bytes of push constants, got {}",
@@ -625,6 +668,17 @@ impl CommandRecorder {
         unsafe {
             d.cmd_begin_render_pass(cmd, &begin, vk::SubpassContents::INLINE);
             d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.raw());
+            if let Some(set) = set {
+                let layout = pipeline.layout();
+                d.cmd_bind_descriptor_sets(
+                    cmd,
+                    vk::PipelineBindPoint::GRAPHICS,
+                    layout,
+                    0,
+                    &[set],
+                    &[],
+                );
+            }
             d.cmd_set_viewport(cmd, 0, &[viewport]);
             d.cmd_set_scissor(cmd, 0, &[area]);
             if !push.is_empty() {

@@ -117,6 +117,28 @@ pub struct ComputePipelineDesc<'a> {
     pub specialization: &'a [(u32, u32)],
 }
 
+/// A pipeline's set-0 layout, as the recorder writes descriptor sets for it.
+pub trait DescriptorLayout {
+    /// Name, for error messages.
+    fn name(&self) -> &str;
+    /// Kinds of set-0 bindings 0, 1, 2, ...
+    fn bindings(&self) -> &[DescriptorKind];
+    /// The set-0 layout.
+    fn set_layout(&self) -> vk::DescriptorSetLayout;
+}
+
+impl DescriptorLayout for ComputePipeline {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn bindings(&self) -> &[DescriptorKind] {
+        &self.bindings
+    }
+    fn set_layout(&self) -> vk::DescriptorSetLayout {
+        self.set_layout
+    }
+}
+
 /// A compute pipeline with its layout and set-0 layout; destroyed on drop.
 pub struct ComputePipeline {
     raw: vk::Pipeline,

@@ -1,0 +1,373 @@
+//! Alpha-tested casters (glTF `MASK`, and `BLEND` cast as `MASK` at 0.5):
+//! the coverage arithmetic in `f32`, twin of `shaders/alpha_common.glsl`,
+//! and the tables the shaders read it from.
+//!
+//! # Coverage
+//!
+//! A point of an alpha-tested triangle with barycentrics `(1 − b1 − b2, b1,
+//! b2)` has texture coordinates `uv = uv0 (1 − b1 − b2) + uv1 b1 + uv2 b2`
+//! (`TEXCOORD_0`; glTF's origin is the image's top-left corner, so `v`
+//! grows downwards and row 0 is the image's first row). On a `W × H` image
+//! of 8-bit alphas `A[j][i]` (column `i`, row `j`):
+//!
+//! - `NEAREST`: `x = u W`, `y = v H`; the texel `(⌊x⌋, ⌊y⌋)`, wrapped;
+//!   `alpha = A`.
+//! - `LINEAR` (glTF's default): `x = u W − ½`, `y = v H − ½`; `i = ⌊x⌋`,
+//!   `fx = x − i` (likewise `j`, `fy`); the texels `(i, j)`, `(i + 1, j)`,
+//!   `(i, j + 1)`, `(i + 1, j + 1)`, each wrapped; `alpha = (A00 (1 − fx) +
+//!   A10 fx) (1 − fy) + (A01 (1 − fx) + A11 fx) fy`, in `f32` in that order.
+//! - Wrapping a texel index `i` of a side of `n` texels: `REPEAT` (glTF's
+//!   default) `i mod n` (non-negative), `CLAMP_TO_EDGE` `clamp(i, 0, n −
+//!   1)`, `MIRRORED_REPEAT` `m = i mod 2n`, then `m` if `m < n`, else `2n −
+//!   1 − m`. `x` and `y` are clamped to `±2²⁴` first (past that an `f32`
+//!   has no fraction left, and the index stays an `i32`).
+//!
+//! The point is opaque where `factor × alpha ≥ cutoff × 255`
+//! (`baseColorFactor`'s alpha, `alphaCutoff`); without a texture, where
+//! `factor ≥ cutoff`. The oracle computes the same in `f64` on its own
+//! (`oracle::coverage`); the two may disagree only where a point within
+//! the conformance band of the crossing point straddles a texel edge or
+//! the cutoff.
+//!
+//! # Where the barycentrics come from
+//!
+//! - A shadow segment from `x` along `d` (to a light sample or towards a
+//!   directional light) crossing triangle `(a, b, c)`: Möller–Trumbore,
+//!   `p = d × (c − a)`, `det = (b − a) · p`, `t = x − a`, `b1 = t · p /
+//!   det`, `q = t × (b − a)`, `b2 = d · q / det` ([`segment_barycentrics`]).
+//! - A view sample `s` on its triangle: `v0 = b − a`, `v1 = c − a`, `v2 = s
+//!   − a`, `d00 = v0·v0`, `d01 = v0·v1`, `d11 = v1·v1`, `d20 = v2·v0`,
+//!   `d21 = v2·v1`, `den = d00 d11 − d01²`, `b1 = (d11 d20 − d01 d21) /
+//!   den`, `b2 = (d00 d21 − d01 d20) / den` ([`point_barycentrics`]).
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use glam::{Vec2, Vec3};
+
+use crate::scene::{AlphaTest, MagFilter, Scene, Wrap};
+
+/// `ALPHA_NONE`: the record index of an opaque triangle.
+pub const ALPHA_NONE: u32 = u32::MAX;
+/// Textures' flags: `LINEAR` filtering (else `NEAREST`).
+pub const ALPHA_LINEAR: u32 = 1;
+
+/// A coverage texture as the shaders read it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AlphaTexture {
+    /// Width and height in texels (1 × 1 of 255 without an image).
+    pub size: [u32; 2],
+    /// Row-major alphas, row 0 the image's first (top) row.
+    pub alphas: Vec<u8>,
+    /// `MagFilter::Linear`.
+    pub linear: bool,
+    /// Wrap modes along u and v.
+    pub wrap: [Wrap; 2],
+    /// `alphaCutoff`.
+    pub cutoff: f32,
+    /// `baseColorFactor`'s alpha.
+    pub factor: f32,
+}
+
+impl AlphaTexture {
+    /// The texture of an alpha test.
+    pub fn new(t: &AlphaTest) -> Self {
+        let (size, alphas) = match &t.image {
+            Some(img) => (
+                [img.width(), img.height()],
+                img.pixels().map(|p| p.0[3]).collect(),
+            ),
+            None => ([1, 1], vec![255]),
+        };
+        AlphaTexture {
+            size,
+            alphas,
+            linear: t.sampler.mag_filter == MagFilter::Linear,
+            wrap: [t.sampler.wrap_s, t.sampler.wrap_t],
+            cutoff: t.cutoff,
+            factor: t.factor,
+        }
+    }
+
+    fn alpha(&self, i: i32, j: i32) -> f32 {
+        let [w, h] = self.size;
+        let x = wrap(i, w as i32, self.wrap[0]);
+        let y = wrap(j, h as i32, self.wrap[1]);
+        self.alphas[(y * w as i32 + x) as usize] as f32
+    }
+
+    /// Whether the point with texture coordinates `uv` is opaque.
+    pub fn opaque(&self, uv: Vec2) -> bool {
+        let [w, h] = self.size;
+        let alpha = if self.linear {
+            let x = clamp_coordinate(uv.x * w as f32 - 0.5);
+            let y = clamp_coordinate(uv.y * h as f32 - 0.5);
+            let (fi, fj) = (x.floor(), y.floor());
+            let (fx, fy) = (x - fi, y - fj);
+            let (i, j) = (fi as i32, fj as i32);
+            let top = self.alpha(i, j) * (1.0 - fx) + self.alpha(i + 1, j) * fx;
+            let bottom = self.alpha(i, j + 1) * (1.0 - fx) + self.alpha(i + 1, j + 1) * fx;
+            top * (1.0 - fy) + bottom * fy
+        } else {
+            let x = clamp_coordinate(uv.x * w as f32);
+            let y = clamp_coordinate(uv.y * h as f32);
+            self.alpha(x.floor() as i32, y.floor() as i32)
+        };
+        self.factor * alpha >= self.cutoff * 255.0
+    }
+}
+
+/// `±2²⁴`: texel coordinates past it have no fraction left in `f32`.
+fn clamp_coordinate(x: f32) -> f32 {
+    x.clamp(-16_777_216.0, 16_777_216.0)
+}
+
+/// Texel index `i` of a side of `n` wrapped by `mode`.
+pub fn wrap(i: i32, n: i32, mode: Wrap) -> i32 {
+    match mode {
+        Wrap::Repeat => i.rem_euclid(n),
+        Wrap::ClampToEdge => i.clamp(0, n - 1),
+        Wrap::MirroredRepeat => {
+            let m = i.rem_euclid(2 * n);
+            if m < n {
+                m
+            } else {
+                2 * n - 1 - m
+            }
+        }
+    }
+}
+
+/// Barycentrics `(b1, b2)` where the line from `x` along `d` meets the
+/// plane of `(a, b, c)` (Möller–Trumbore, as `alpha_common.glsl`).
+pub fn segment_barycentrics(x: Vec3, d: Vec3, v: [Vec3; 3]) -> Vec2 {
+    let [a, b, c] = v;
+    let (e1, e2) = (b - a, c - a);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    let t = x - a;
+    let q = t.cross(e1);
+    Vec2::new(t.dot(p) / det, d.dot(q) / det)
+}
+
+/// Barycentrics `(b1, b2)` of the point `s` of the plane of `(a, b, c)`
+/// (Ericson's, as `alpha_common.glsl`).
+pub fn point_barycentrics(s: Vec3, v: [Vec3; 3]) -> Vec2 {
+    let [a, b, c] = v;
+    let (v0, v1, v2) = (b - a, c - a, s - a);
+    let (d00, d01, d11) = (v0.dot(v0), v0.dot(v1), v1.dot(v1));
+    let (d20, d21) = (v2.dot(v0), v2.dot(v1));
+    let den = d00 * d11 - d01 * d01;
+    Vec2::new((d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den)
+}
+
+/// One alpha-tested triangle's record: its corners' texture coordinates
+/// and its texture.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AlphaRecord {
+    /// `TEXCOORD_0` of corners 0, 1, 2.
+    pub uvs: [Vec2; 3],
+    /// Index into [`AlphaTables::textures`].
+    pub texture: u32,
+}
+
+impl AlphaRecord {
+    /// The texture coordinates at barycentrics `(b1, b2)`.
+    pub fn uv(&self, b: Vec2) -> Vec2 {
+        self.uvs[0] * (1.0 - b.x - b.y) + self.uvs[1] * b.x + self.uvs[2] * b.y
+    }
+}
+
+/// The scene's alpha tests as the shaders read them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AlphaTables {
+    /// Per global triangle: its record, or [`ALPHA_NONE`].
+    pub triangle_records: Vec<u32>,
+    /// Per alpha-tested triangle.
+    pub records: Vec<AlphaRecord>,
+    /// One per alpha-tested material.
+    pub textures: Vec<AlphaTexture>,
+}
+
+impl AlphaTables {
+    /// The tables of `scene`'s alpha-tested triangles ([`Scene::triangles`]
+    /// order); empty when it has none.
+    pub fn new(scene: &Scene) -> Self {
+        let mut tables = AlphaTables::default();
+        let mut texture_of: HashMap<*const AlphaTest, u32> = HashMap::new();
+        let mut keep: Vec<Arc<AlphaTest>> = Vec::new();
+        for t in scene.triangles() {
+            let Some((test, uvs)) = &t.alpha else {
+                tables.triangle_records.push(ALPHA_NONE);
+                continue;
+            };
+            let texture = *texture_of.entry(Arc::as_ptr(test)).or_insert_with(|| {
+                keep.push(test.clone());
+                tables.textures.push(AlphaTexture::new(test));
+                (tables.textures.len() - 1) as u32
+            });
+            tables.triangle_records.push(tables.records.len() as u32);
+            tables.records.push(AlphaRecord {
+                uvs: uvs.map(|uv| uv.as_vec2()),
+                texture,
+            });
+        }
+        if tables.records.is_empty() {
+            return AlphaTables::default();
+        }
+        tables
+    }
+
+    /// Whether no triangle is alpha-tested.
+    pub fn is_empty(&self) -> bool {
+        self.records.is_empty()
+    }
+
+    /// Whether global triangle `t` is alpha-tested.
+    pub fn is_tested(&self, t: u32) -> bool {
+        self.triangle_records
+            .get(t as usize)
+            .is_some_and(|&r| r != ALPHA_NONE)
+    }
+
+    /// Whether global triangle `t`, whose corners are `v`, is opaque where
+    /// the line from `x` along `d` crosses its plane (opaque triangles
+    /// everywhere).
+    pub fn segment_opaque(&self, t: u32, v: [Vec3; 3], x: Vec3, d: Vec3) -> bool {
+        match self.triangle_records.get(t as usize) {
+            Some(&r) if r != ALPHA_NONE => {
+                let rec = &self.records[r as usize];
+                let uv = rec.uv(segment_barycentrics(x, d, v));
+                self.textures[rec.texture as usize].opaque(uv)
+            }
+            _ => true,
+        }
+    }
+
+    /// Whether global triangle `t` (corners `v`) is opaque at its point `s`.
+    pub fn point_opaque(&self, t: u32, v: [Vec3; 3], s: Vec3) -> bool {
+        match self.triangle_records.get(t as usize) {
+            Some(&r) if r != ALPHA_NONE => {
+                let rec = &self.records[r as usize];
+                let uv = rec.uv(point_barycentrics(s, v));
+                self.textures[rec.texture as usize].opaque(uv)
+            }
+            _ => true,
+        }
+    }
+
+    /// The shaders' tables: records (two `uvec4` each: u0, v0, u1, v1 as
+    /// float bits; u2, v2, texture, 0), textures (two `uvec4` each: first
+    /// alpha, width, height, flags; cutoff and factor as float bits, 0, 0)
+    /// and the alphas (bytes, every texture's rows one after another).
+    pub fn gpu(&self) -> (Vec<[u32; 4]>, Vec<[u32; 4]>, Vec<u8>) {
+        let mut records = Vec::with_capacity(2 * self.records.len());
+        for r in &self.records {
+            let [a, b, c] = r.uvs;
+            records.push([a.x, a.y, b.x, b.y].map(f32::to_bits));
+            records.push([c.x.to_bits(), c.y.to_bits(), r.texture, 0]);
+        }
+        let mut textures = Vec::with_capacity(2 * self.textures.len());
+        let mut alphas = Vec::new();
+        for t in &self.textures {
+            let flags = if t.linear { ALPHA_LINEAR } else { 0 }
+                | wrap_code(t.wrap[0]) << 1
+                | wrap_code(t.wrap[1]) << 3;
+            textures.push([alphas.len() as u32, t.size[0], t.size[1], flags]);
+            textures.push([t.cutoff.to_bits(), t.factor.to_bits(), 0, 0]);
+            alphas.extend_from_slice(&t.alphas);
+        }
+        (records, textures, alphas)
+    }
+}
+
+/// `WRAP_*` in `alpha_common.glsl`.
+fn wrap_code(w: Wrap) -> u32 {
+    match w {
+        Wrap::Repeat => 0,
+        Wrap::ClampToEdge => 1,
+        Wrap::MirroredRepeat => 2,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn texture(size: [u32; 2], alphas: Vec<u8>, linear: bool, wrap: [Wrap; 2]) -> AlphaTexture {
+        AlphaTexture {
+            size,
+            alphas,
+            linear,
+            wrap,
+            cutoff: 0.5,
+            factor: 1.0,
+        }
+    }
+
+    #[test]
+    fn wrap_modes_follow_gltf() {
+        assert_eq!(
+            (-1..5)
+                .map(|i| wrap(i, 2, Wrap::Repeat))
+                .collect::<Vec<_>>(),
+            [1, 0, 1, 0, 1, 0]
+        );
+        assert_eq!(
+            (-1..5)
+                .map(|i| wrap(i, 2, Wrap::ClampToEdge))
+                .collect::<Vec<_>>(),
+            [0, 0, 1, 1, 1, 1]
+        );
+        assert_eq!(
+            (-2..6)
+                .map(|i| wrap(i, 2, Wrap::MirroredRepeat))
+                .collect::<Vec<_>>(),
+            [1, 0, 0, 1, 1, 0, 0, 1]
+        );
+    }
+
+    #[test]
+    fn nearest_reads_the_texel_the_point_falls_in() {
+        // 2 x 1: left opaque, right clear; v is irrelevant.
+        let t = texture([2, 1], vec![255, 0], false, [Wrap::Repeat; 2]);
+        assert!(t.opaque(Vec2::new(0.25, 0.5)));
+        assert!(!t.opaque(Vec2::new(0.75, 0.5)));
+        assert!(!t.opaque(Vec2::new(0.5, 0.5)), "x = 1 is the second texel");
+        assert!(t.opaque(Vec2::new(1.25, 0.5)), "repeat");
+        let c = texture([2, 1], vec![255, 0], false, [Wrap::ClampToEdge; 2]);
+        assert!(!c.opaque(Vec2::new(1.25, 0.5)), "clamped to the last texel");
+        assert!(c.opaque(Vec2::new(-3.0, 0.5)));
+    }
+
+    #[test]
+    fn linear_blends_between_texel_centres() {
+        let t = texture([2, 1], vec![255, 0], true, [Wrap::ClampToEdge; 2]);
+        // Centres at u = 0.25 (255) and 0.75 (0): 0.5 of the way at u = 0.5.
+        assert!(t.opaque(Vec2::new(0.49, 0.5)));
+        assert!(t.opaque(Vec2::new(0.5, 0.5)), "127.5 >= 127.5");
+        assert!(!t.opaque(Vec2::new(0.51, 0.5)));
+        // At u = 1, half way from the last texel's centre to the next: the
+        // first texel again when repeating, the last one when clamped.
+        let r = texture([2, 1], vec![255, 0], true, [Wrap::Repeat; 2]);
+        assert!(r.opaque(Vec2::new(1.0, 0.5)));
+        assert!(!t.opaque(Vec2::new(1.0, 0.5)));
+        for k in 0..40 {
+            let u = k as f32 * 0.05 - 1.0;
+            assert_eq!(
+                r.opaque(Vec2::new(u, 0.5)),
+                r.opaque(Vec2::new(u + 2.0, 0.5)),
+                "u {u}"
+            );
+        }
+    }
+
+    #[test]
+    fn barycentrics_agree_on_a_crossing() {
+        let v = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let b = segment_barycentrics(Vec3::new(0.25, 0.5, 1.0), Vec3::new(0.0, 0.0, -2.0), v);
+        assert!((b - Vec2::new(0.25, 0.5)).length() < 1e-6);
+        let p = point_barycentrics(Vec3::new(0.25, 0.5, 0.0), v);
+        assert!((p - Vec2::new(0.25, 0.5)).length() < 1e-6);
+    }
+}
