@@ -339,6 +339,23 @@ fn frames(c: &mut Criterion) {
         sweep.frame(&mut engine, &size.to_string(), &desc);
     }
     sweep.finish();
+
+    // Perforated casters (alpha-tested lattice): the same scene with its
+    // alpha tests, and with them off (opaque), hard and soft.
+    let mut sweep = Sweep::new(c, "perforated");
+    for (name, masks) in [("masked", true), ("opaque", false)] {
+        let mut fence = scene("builtin:fence", VIEW);
+        if !masks {
+            for m in &mut fence.scene.materials {
+                m.alpha_mode = alias_free_shadows::scene::AlphaMode::Opaque;
+            }
+        }
+        let hard = with_point_light(fence.clone());
+        sweep.frame(&mut engine, &format!("hard_{name}"), &hard);
+        let soft = with_sphere_light(fence, 0.4, 128);
+        sweep.frame(&mut engine, &format!("soft_{name}"), &soft);
+    }
+    sweep.finish();
 }
 
 criterion_group!(benches, frames);

@@ -43,13 +43,15 @@ pub struct BenchOptions {
     pub progress: bool,
 }
 
-/// The default scenes: three built-ins, and the Lantern model when
-/// `../shared/assets` (next to the crate) holds it.
+/// The default scenes: four built-ins (`builtin:fence` with its
+/// alpha-tested lattice), and the Lantern model when `../shared/assets`
+/// (next to the crate) holds it.
 pub fn default_scenes() -> Vec<String> {
     let mut s: Vec<String> = [
         "builtin:demo",
         "builtin:plane_sphere",
         "builtin:torus_knot:20000",
+        "builtin:fence",
     ]
     .map(String::from)
     .to_vec();

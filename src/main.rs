@@ -154,6 +154,11 @@ struct RenderArgs {
     /// Add a ground plane under the scene's lowest point.
     #[arg(long)]
     ground: bool,
+    /// Treat alpha-tested (MASK and BLEND) materials as opaque: no holes to
+    /// see or cast through (to measure what the alpha tests cost, or to see
+    /// a model as engines that ignore its masks do).
+    #[arg(long)]
+    opaque_masks: bool,
     /// Do not show progress bars.
     #[arg(long)]
     quiet: bool,
@@ -168,6 +173,11 @@ impl RenderArgs {
         let mut desc = file::load(&self.scene)?;
         if self.ground {
             file::place_on_ground(&mut desc.scene);
+        }
+        if self.opaque_masks {
+            for m in &mut desc.scene.materials {
+                m.alpha_mode = alias_free_shadows::scene::AlphaMode::Opaque;
+            }
         }
         if let Some(spec) = &self.light {
             file::replace_light(&mut desc, spec)?;

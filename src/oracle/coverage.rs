@@ -17,6 +17,8 @@ pub(crate) struct Coverage {
     pub test: std::sync::Arc<AlphaTest>,
     /// Texture coordinates of the corners.
     pub uvs: [DVec2; 3],
+    /// The corners, origin-relative.
+    pub vertices: [glam::DVec3; 3],
 }
 
 impl Coverage {
@@ -69,6 +71,17 @@ impl Coverage {
     pub fn opaque(&self, b1: f64, b2: f64) -> bool {
         self.opaque_at(self.uv(b1, b2))
     }
+
+    /// Barycentrics (`b1`, `b2`) of the point of the triangle's plane
+    /// nearest to the origin-relative `p` (least squares).
+    pub fn barycentrics(&self, p: glam::DVec3) -> (f64, f64) {
+        let [a, b, c] = self.vertices;
+        let (e1, e2, d) = (b - a, c - a, p - a);
+        let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let (r1, r2) = (d.dot(e1), d.dot(e2));
+        let den = d11 * d22 - d12 * d12;
+        ((d22 * r1 - d12 * r2) / den, (d11 * r2 - d12 * r1) / den)
+    }
 }
 
 /// Texel index `i` on a side of `n` texels, wrapped as glTF says.
@@ -107,6 +120,7 @@ mod tests {
                 factor: 1.0,
             }),
             uvs: [DVec2::ZERO, DVec2::X, DVec2::Y],
+            vertices: [glam::DVec3::ZERO, glam::DVec3::X, glam::DVec3::Y],
         }
     }
 

@@ -225,6 +225,7 @@ impl Oracle {
                 t.alpha.as_ref().map(|(test, uvs)| Coverage {
                     test: test.clone(),
                     uvs: *uvs,
+                    vertices: t.vertices.map(|v| v - origin),
                 })
             })
             .collect();
@@ -259,6 +260,41 @@ impl Oracle {
             shadow_rays: AtomicU64::new(0),
             coverage,
         }
+    }
+
+    /// Whether alpha-tested triangle `triangle` (global id) is opaque at
+    /// the world point `p` of its plane (by its alpha test,
+    /// [`crate::cpu::alpha`]); `None` for an opaque triangle.
+    pub fn alpha_opaque_at(&self, triangle: u32, p: DVec3) -> Option<bool> {
+        let c = self.coverage.get(triangle as usize)?.as_ref()?;
+        let (b1, b2) = c.barycentrics(p - self.origin);
+        Some(c.opaque(b1, b2))
+    }
+
+    /// Whether alpha-tested triangle `triangle`'s opacity at world point
+    /// `p` of its plane differs somewhere within `radius` of `p` in that
+    /// plane (at the eight points of a circle of that radius): the
+    /// conformance tests' band for a point whose f32 computation may land
+    /// on the other side of a texel edge or of the cutoff. False for
+    /// opaque triangles.
+    pub fn alpha_flips_near(&self, triangle: u32, p: DVec3, radius: f64) -> bool {
+        let Some(Some(c)) = self.coverage.get(triangle as usize) else {
+            return false;
+        };
+        let [a, b, v2] = c.vertices;
+        let u = (b - a).normalize_or_zero();
+        let n = (b - a).cross(v2 - a);
+        let w = n.cross(u).normalize_or_zero();
+        let q = p - self.origin;
+        let at = |x: DVec3| {
+            let (b1, b2) = c.barycentrics(x);
+            c.opaque(b1, b2)
+        };
+        let here = at(q);
+        (0..8).any(|k| {
+            let angle = k as f64 * std::f64::consts::FRAC_PI_4;
+            at(q + (u * angle.cos() + w * angle.sin()) * radius) != here
+        })
     }
 
     /// Whether a hit of leaf-ordered triangle `index` counts: everywhere

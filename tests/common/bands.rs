@@ -23,7 +23,10 @@
 //! Caster-plane band: the pair may also disagree if its view sample lies
 //! within [`CASTER_PLANE_ULPS`] f32 ulps (`CASTER_PLANE_ULPS · 2⁻²³ · ‖p − eye‖∞`)
 //! of the supporting plane of a triangle that its shadow segment meets
-//! (crosses, or passes within that distance of one of its edges). A
+//! (crosses, passes within that distance of one of its edges, or starts on
+//! it: the sample's projection onto the plane lies inside the triangle, as
+//! on TransmissionTest's coplanar backdrop, 8e-8 from another mesh's plane,
+//! 0.7 ulps). A
 //! triangle's shadow volume is bounded by its three edge planes, which the
 //! light band covers, and by its own supporting plane, which moving the
 //! light does not move: this band is that fourth boundary. The GPU
@@ -253,6 +256,19 @@ pub fn near_caster_plane(scene: &Scene, eye: DVec3, s: &ViewSample, target: Ligh
             && n != DVec3::ZERO
             && n.dot(s.position - v[0]).abs() <= eps
             && (segment_crosses(s.position, end, v)
-                || (0..3).any(|e| segment_distance(s.position, end, v[e], v[(e + 1) % 3]) <= eps))
+                || (0..3).any(|e| segment_distance(s.position, end, v[e], v[(e + 1) % 3]) <= eps)
+                || projects_inside(s.position, v))
+    })
+}
+
+/// Whether `p`'s projection onto the plane of `v` lies inside it: a sample
+/// that close to the plane starts its segment on the triangle, as far as
+/// the band can tell (a decal, or another surface coplanar with the
+/// sample's: the GPU's f32 plane may put the sample behind it).
+fn projects_inside(p: DVec3, v: [DVec3; 3]) -> bool {
+    let n = (v[1] - v[0]).cross(v[2] - v[0]);
+    (0..3).all(|e| {
+        let (a, b) = (v[e], v[(e + 1) % 3]);
+        (b - a).cross(p - a).dot(n) >= 0.0
     })
 }
