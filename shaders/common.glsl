@@ -60,6 +60,9 @@ struct GpuTriangle {
 // GpuTriangle.v0_flags.w bit: an alpha-tested triangle (alpha_common.glsl),
 // whose record is v2_pad.w.
 #define TRIANGLE_ALPHA 8u
+// With TRIANGLE_ALPHA: transparent wherever its coverage can be read
+// (cpu::alpha::Footprint): it casts nothing.
+#define TRIANGLE_INVISIBLE 16u
 
 // ---- Frame constants (uniform buffer, std140) -----------------------------
 

@@ -121,7 +121,8 @@ uint global_triangle(uint i) { return i + floatBitsToUint(pc.soft_light.z); }
 // a light's passes, with the alpha tests: light_passes.rs).
 bool caster_in_class(uint flags) {
     float c = pc.dir_up.w;
-    return c == 0.0 || (c == 2.0) == ((flags & TRIANGLE_ALPHA) != 0u);
+    bool casts = (flags & TRIANGLE_INVISIBLE) == 0u;
+    return casts && (c == 0.0 || (c == 2.0) == ((flags & TRIANGLE_ALPHA) != 0u));
 }
 
 // Soft shadows: the light is the bounding sphere (origin, R) of its samples.

@@ -169,6 +169,68 @@ pub struct AlphaRecord {
     pub uvs: [Vec2; 3],
     /// Index into [`AlphaTables::textures`].
     pub texture: u32,
+    /// Every texel its coverage can read is transparent: it casts nothing
+    /// and is never seen (`TRIANGLE_INVISIBLE`).
+    pub invisible: bool,
+}
+
+/// What every texel that a triangle's coverage can read says.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Footprint {
+    /// Opaque everywhere: the triangle casts as an opaque one.
+    Opaque,
+    /// Transparent everywhere: it casts nothing and is never seen.
+    Transparent,
+    /// Some of each (or too many texels to look at): tested per point.
+    Mixed,
+}
+
+/// Texels a footprint may visit before it is called [`Footprint::Mixed`].
+const FOOTPRINT_TEXELS: i64 = 4096;
+
+impl AlphaTexture {
+    /// The footprint of a triangle with texture coordinates `uvs`: every
+    /// texel its coverage can read at any point of it, or a little outside
+    /// it (a crossing computed in f32 may land a rounding error past an
+    /// edge): its texture-space box grown by one texel and a thousandth of
+    /// its size, the filter's reach included. Opaque (transparent) only
+    /// where `factor × alpha` passes (misses) the cutoff by a relative
+    /// 1e-5, beyond the rounding of the f32 interpolation.
+    pub fn footprint(&self, uvs: [Vec2; 3]) -> Footprint {
+        let [w, h] = self.size.map(|s| s as f64);
+        let (lo, hi) = uvs.iter().fold(
+            (glam::DVec2::INFINITY, glam::DVec2::NEG_INFINITY),
+            |(lo, hi), uv| {
+                let t = uv.as_dvec2() * glam::DVec2::new(w, h);
+                (lo.min(t), hi.max(t))
+            },
+        );
+        let grow = glam::DVec2::splat(1.0) + (hi - lo) * 1e-3;
+        let shift = if self.linear { 0.5 } else { 0.0 };
+        let (lo, hi) = (lo - grow - shift, hi + grow - shift);
+        if !lo.is_finite() || !hi.is_finite() {
+            return Footprint::Mixed;
+        }
+        let (x0, y0) = (lo.x.floor() as i64, lo.y.floor() as i64);
+        let (x1, y1) = (hi.x.floor() as i64 + 1, hi.y.floor() as i64 + 1);
+        if (x1 - x0 + 1).saturating_mul(y1 - y0 + 1) > FOOTPRINT_TEXELS {
+            return Footprint::Mixed;
+        }
+        let threshold = self.cutoff as f64 * 255.0;
+        let (mut opaque, mut clear) = (true, true);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let a = self.factor as f64 * self.alpha(x as i32, y as i32) as f64;
+                opaque &= a >= threshold * (1.0 + 1e-5);
+                clear &= a < threshold * (1.0 - 1e-5);
+            }
+        }
+        match (opaque, clear) {
+            (true, _) => Footprint::Opaque,
+            (_, true) => Footprint::Transparent,
+            _ => Footprint::Mixed,
+        }
+    }
 }
 
 impl AlphaRecord {
@@ -206,10 +268,19 @@ impl AlphaTables {
                 tables.textures.push(AlphaTexture::new(test));
                 (tables.textures.len() - 1) as u32
             });
+            let uvs = uvs.map(|uv| uv.as_vec2());
+            // A triangle opaque wherever its coverage can be read is an
+            // opaque caster: the alpha round is for the others.
+            let footprint = tables.textures[texture as usize].footprint(uvs);
+            if footprint == Footprint::Opaque {
+                tables.triangle_records.push(ALPHA_NONE);
+                continue;
+            }
             tables.triangle_records.push(tables.records.len() as u32);
             tables.records.push(AlphaRecord {
-                uvs: uvs.map(|uv| uv.as_vec2()),
+                uvs,
                 texture,
+                invisible: footprint == Footprint::Transparent,
             });
         }
         if tables.records.is_empty() {
@@ -223,7 +294,8 @@ impl AlphaTables {
         self.records.is_empty()
     }
 
-    /// Whether global triangle `t` is alpha-tested.
+    /// Whether global triangle `t` is alpha-tested (and not opaque
+    /// wherever it can be read: [`AlphaTexture::footprint`]).
     pub fn is_tested(&self, t: u32) -> bool {
         self.triangle_records
             .get(t as usize)
@@ -369,5 +441,68 @@ mod tests {
         assert!((b - Vec2::new(0.25, 0.5)).length() < 1e-6);
         let p = point_barycentrics(Vec3::new(0.25, 0.5, 0.0), v);
         assert!((p - Vec2::new(0.25, 0.5)).length() < 1e-6);
+    }
+
+    #[test]
+    fn footprints_claim_only_what_every_point_says() {
+        // Random textures and UV triangles: where a footprint says opaque
+        // (transparent), every point of the triangle and a little outside
+        // it must be; and some must say so, or this proves nothing.
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f32 / (1u64 << 53) as f32
+        };
+        let (mut sure, mut cases) = (0, 0);
+        for _ in 0..3000 {
+            let (w, h) = (1 + (rnd() * 6.0) as u32, 1 + (rnd() * 6.0) as u32);
+            let alphas = (0..w * h)
+                .map(|_| {
+                    if rnd() < 0.7 {
+                        255
+                    } else {
+                        (rnd() * 255.0) as u8
+                    }
+                })
+                .collect();
+            let wraps = [Wrap::Repeat, Wrap::ClampToEdge, Wrap::MirroredRepeat];
+            let t = AlphaTexture {
+                size: [w, h],
+                alphas,
+                linear: rnd() < 0.5,
+                wrap: [
+                    wraps[(rnd() * 3.0) as usize % 3],
+                    wraps[(rnd() * 3.0) as usize % 3],
+                ],
+                cutoff: 0.2 + 0.6 * rnd(),
+                factor: 0.8 + 0.2 * rnd(),
+            };
+            let c = Vec2::new(rnd() * 3.0 - 1.0, rnd() * 3.0 - 1.0);
+            let s = 0.02 + 0.3 * rnd();
+            let uvs = [c, c + Vec2::new(s, 0.0), c + Vec2::new(0.0, s)];
+            let f = t.footprint(uvs);
+            cases += 1;
+            if f == Footprint::Mixed {
+                continue;
+            }
+            sure += 1;
+            let rec = AlphaRecord {
+                uvs,
+                texture: 0,
+                invisible: false,
+            };
+            for k in 0..200 {
+                let b = Vec2::new(rnd() * 1.02 - 0.01, rnd() * 1.02 - 0.01);
+                let opaque = t.opaque(rec.uv(b));
+                assert_eq!(
+                    opaque,
+                    f == Footprint::Opaque,
+                    "case {cases} point {k}: {f:?}"
+                );
+            }
+        }
+        assert!(sure * 5 > cases, "{sure} of {cases} footprints sure");
     }
 }

@@ -7,7 +7,7 @@
 
 use crate::cpu::alpha::{AlphaTables, ALPHA_NONE};
 use crate::gpu::dispatch::RGBA32UI;
-use crate::gpu::shared::{GpuTriangle, TRIANGLE_ALPHA};
+use crate::gpu::shared::{GpuTriangle, TRIANGLE_ALPHA, TRIANGLE_INVISIBLE};
 use crate::vulkan::{vk, Binding, BufferSlice, GpuContext, GrowBuffer};
 use crate::Result;
 
@@ -120,11 +120,15 @@ impl Default for AlphaBuffers {
 }
 
 /// Marks `triangles` (global ids, [`crate::scene::Scene::triangles`]
-/// order) that `tables` alpha-tests: [`TRIANGLE_ALPHA`] and their record.
+/// order) that `tables` alpha-tests: [`TRIANGLE_ALPHA`] and their record
+/// (and [`TRIANGLE_INVISIBLE`] for those transparent everywhere).
 pub fn mark_alpha_triangles(triangles: &mut [GpuTriangle], tables: &AlphaTables) {
     for (t, &r) in triangles.iter_mut().zip(&tables.triangle_records) {
         if r != ALPHA_NONE {
             t.flags |= TRIANGLE_ALPHA;
+            if tables.records[r as usize].invisible {
+                t.flags |= TRIANGLE_INVISIBLE;
+            }
             t.alpha_record = r;
         }
     }

@@ -148,6 +148,9 @@ pub const TRIANGLE_CLOSED: u32 = 4;
 /// `TRIANGLE_ALPHA` (alpha_common.glsl): [`GpuTriangle::flags`] bit of
 /// alpha-tested triangles, whose record is [`GpuTriangle::alpha_record`].
 pub const TRIANGLE_ALPHA: u32 = 8;
+/// `TRIANGLE_INVISIBLE`: with [`TRIANGLE_ALPHA`], transparent wherever its
+/// coverage can be read: it casts nothing (`cpu::alpha::Footprint`).
+pub const TRIANGLE_INVISIBLE: u32 = 16;
 /// Counter slots of the shadow passes (`COUNTER_*`).
 pub mod counter {
     /// (Caster, light face) pairs the caster passes appended, including
