@@ -29,7 +29,10 @@ pub struct HardShadows {
 /// `samples` are camera-relative (position, normal) with their triangle
 /// ids (`u32::MAX` for none); `triangles` camera-relative with their mesh's
 /// closed flag, alpha-tested by `alpha` ([`AlphaTables::new`] of their
-/// scene, or empty tables).
+/// scene, or empty tables). The GPU's caster setup skips a triangle that
+/// is transparent wherever it can be read (`TRIANGLE_INVISIBLE`); this twin
+/// sets it up and counts it, and its alpha test then blocks nothing: the
+/// shadows agree, the caster counters may not on such scenes.
 pub fn hard_shadows(
     light: &LightView,
     samples: &[Option<(Vec3, Vec3)>],
