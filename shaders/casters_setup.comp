@@ -29,12 +29,7 @@ void soft_caster(uint i, vec3 v[3], vec3 n, bool closed) {
     vec3 o = pc.origin.xyz;
     float R = pc.soft_light.x;
     uint degree = uint(pc.soft_light.y);
-    CasterPlanes cp;
-    cp.support = vec4(0.0);
-    cp.edge0 = vec4(0.0);
-    cp.edge1 = vec4(0.0);
-    cp.edge2 = vec4(0.0);
-    cp.side = vec4(0.0);
+    CasterPlanes cp = no_planes();
     planes[i] = cp;
     float nl = length(n);
     if (any(isnan(n)) || any(isinf(n)) || nl == 0.0 || isinf(nl)) {
@@ -123,13 +118,7 @@ void main() {
     bool closed = (flags & TRIANGLE_CLOSED) != 0u;
     if (!caster_in_class(flags)) {
         // The other round's caster: no planes, no pairs.
-        CasterPlanes none;
-        none.support = vec4(0.0);
-        none.edge0 = vec4(0.0);
-        none.edge1 = vec4(0.0);
-        none.edge2 = vec4(0.0);
-        none.side = vec4(0.0);
-        planes[i] = none;
+        planes[i] = no_planes();
         return;
     }
     vec3 o = pc.origin.xyz;
@@ -142,12 +131,7 @@ void main() {
         soft_caster(i, v, n, closed);
         return;
     }
-    CasterPlanes cp;
-    cp.support = vec4(0.0);
-    cp.edge0 = vec4(0.0);
-    cp.edge1 = vec4(0.0);
-    cp.edge2 = vec4(0.0);
-    cp.side = vec4(0.0);
+    CasterPlanes cp = no_planes();
     bool point = is_point_light();
     float s_light = point ? dot(n, o - v[0]) : dot(n, -pc.direction.xyz);
     if (any(isnan(n)) || any(isinf(n)) || n == vec3(0.0) || s_light == 0.0 || isnan(s_light) || isinf(s_light)) {

@@ -99,6 +99,11 @@ struct CasterPlanes {
     vec4 side;    // xyz: +1 or -1 per edge
 };
 
+// The planes of a triangle that casts nothing (all zero).
+CasterPlanes no_planes() {
+    return CasterPlanes(vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
+}
+
 bool inside_edge(vec4 e, float side, vec3 q) {
     float v = dot(e.xyz, q) + e.w;
     return side > 0.0 ? v >= 0.0 : v < 0.0;

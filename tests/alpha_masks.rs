@@ -30,7 +30,7 @@ use glam::{DVec2, DVec3};
 
 mod common;
 use common::bands::{in_any_band, BAND};
-use common::engine_view_samples;
+use common::{base64, engine_light, engine_view_samples};
 
 const SIZE: u32 = 64;
 
@@ -190,11 +190,8 @@ fn check_shadows(
     let tris = desc.scene.triangles();
     let oracle = Oracle::new(&tris, eye);
     // The light samples as the engine has them (camera-relative f32).
-    let targets: Vec<LightTarget> = match light.light_samples() {
-        LightSamples::Positions(p) => p
-            .iter()
-            .map(|q| LightTarget::Point(eye + (*q - eye).as_vec3().as_dvec3()))
-            .collect(),
+    let targets: Vec<LightTarget> = match engine_light(light, eye) {
+        LightSamples::Positions(p) => p.into_iter().map(LightTarget::Point).collect(),
         LightSamples::Direction(d) => vec![LightTarget::Direction(d)],
     };
     let got: Vec<Vec<bool>> = match mode {
@@ -528,25 +525,6 @@ fn random_alpha_quads_agree_with_the_oracle() {
         "{in_band} of {pairs} pairs in band"
     );
     engine.context().check_validation().unwrap();
-}
-
-/// Standard base64 (for the test's data URI).
-fn base64(bytes: &[u8]) -> String {
-    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut s = String::new();
-    for c in bytes.chunks(3) {
-        let n = (c[0] as u32) << 16
-            | (*c.get(1).unwrap_or(&0) as u32) << 8
-            | *c.get(2).unwrap_or(&0) as u32;
-        for k in 0..4 {
-            s.push(if k <= c.len() {
-                A[(n >> (18 - 6 * k) & 63) as usize] as char
-            } else {
-                '='
-            });
-        }
-    }
-    s
 }
 
 #[test]

@@ -12,26 +12,11 @@ use alias_free_shadows::scene::{is_closed, AlphaMode, Material, Mesh, Scene, Tex
 use glam::{DVec2, DVec3};
 use serde_json::{json, Value};
 
+mod common;
+use common::base64;
+
 // ---------------------------------------------------------------------------
 // Building test files by hand.
-
-fn base64(bytes: &[u8]) -> String {
-    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut s = String::new();
-    for c in bytes.chunks(3) {
-        let n = (c[0] as u32) << 16
-            | (*c.get(1).unwrap_or(&0) as u32) << 8
-            | *c.get(2).unwrap_or(&0) as u32;
-        for k in 0..4 {
-            if k <= c.len() {
-                s.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
-            } else {
-                s.push('=');
-            }
-        }
-    }
-    s
-}
 
 /// A glTF document under construction: JSON plus one binary buffer.
 struct Doc {

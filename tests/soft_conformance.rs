@@ -2,7 +2,7 @@
 //! against the CPU oracle fed exactly the engine's view samples and light
 //! samples, per (pixel, light sample) pair.
 
-use alias_free_shadows::light::{Light, LightSamples, LightShape};
+use alias_free_shadows::light::{Light, LightShape};
 use alias_free_shadows::oracle::Oracle;
 use alias_free_shadows::render::Engine;
 use alias_free_shadows::scene::file::{self, SceneDescription, ShadowSettings, SoftMode};
@@ -11,20 +11,9 @@ use glam::DVec3;
 
 mod common;
 use common::{
-    engine_view_samples, scaled_and_moved, shared_asset_scenes, sphere_light, SCALE_CASES,
+    engine_light, engine_view_samples, scaled_and_moved, shared_asset_scenes, sphere_light,
+    SCALE_CASES,
 };
-
-/// The light samples as the engine has them (camera-relative f32), back in world space.
-fn engine_light(light: &Light, eye: glam::DVec3) -> LightSamples {
-    match light.light_samples() {
-        LightSamples::Positions(p) => LightSamples::Positions(
-            p.iter()
-                .map(|q| eye + (*q - eye).as_vec3().as_dvec3())
-                .collect(),
-        ),
-        d => d,
-    }
-}
 
 struct Agreement {
     pairs: u64,

@@ -256,15 +256,16 @@ impl AlphaTables {
     /// order); empty when it has none.
     pub fn new(scene: &Scene) -> Self {
         let mut tables = AlphaTables::default();
+        // Textures by their test's address: `triangles` keeps every test
+        // alive, so no address is reused meanwhile.
         let mut texture_of: HashMap<*const AlphaTest, u32> = HashMap::new();
-        let mut keep: Vec<Arc<AlphaTest>> = Vec::new();
-        for t in scene.triangles() {
+        let triangles = scene.triangles();
+        for t in &triangles {
             let Some((test, uvs)) = &t.alpha else {
                 tables.triangle_records.push(ALPHA_NONE);
                 continue;
             };
             let texture = *texture_of.entry(Arc::as_ptr(test)).or_insert_with(|| {
-                keep.push(test.clone());
                 tables.textures.push(AlphaTexture::new(test));
                 (tables.textures.len() - 1) as u32
             });
@@ -310,18 +311,6 @@ impl AlphaTables {
             Some(&r) if r != ALPHA_NONE => {
                 let rec = &self.records[r as usize];
                 let uv = rec.uv(segment_barycentrics(x, d, v));
-                self.textures[rec.texture as usize].opaque(uv)
-            }
-            _ => true,
-        }
-    }
-
-    /// Whether global triangle `t` (corners `v`) is opaque at its point `s`.
-    pub fn point_opaque(&self, t: u32, v: [Vec3; 3], s: Vec3) -> bool {
-        match self.triangle_records.get(t as usize) {
-            Some(&r) if r != ALPHA_NONE => {
-                let rec = &self.records[r as usize];
-                let uv = rec.uv(point_barycentrics(s, v));
                 self.textures[rec.texture as usize].opaque(uv)
             }
             _ => true,

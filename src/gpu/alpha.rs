@@ -23,6 +23,16 @@ pub struct AlphaInputs<'a> {
 }
 
 impl<'a> AlphaInputs<'a> {
+    /// `none` (16 bytes, never read) bound in place of every table: a run
+    /// without alpha-tested triangles still needs a descriptor.
+    pub fn placeholder(none: BufferSlice<'a>) -> Self {
+        AlphaInputs {
+            records: none,
+            textures: none,
+            alphas: none,
+        }
+    }
+
     /// Their bindings, in the shaders' order (records, textures, alphas).
     pub fn bindings(&self) -> [Binding<'a>; 3] {
         [
@@ -80,16 +90,12 @@ impl AlphaBuffers {
         self.present
     }
 
-    /// Whether anything was uploaded yet.
-    pub fn uploaded(&self) -> bool {
-        !self.none.is_empty()
-    }
-
     /// The tables of the last upload; without any alpha-tested triangle, a
     /// small buffer in their place (a descriptor needs one).
     ///
     /// # Panics
-    /// Before the first [`AlphaBuffers::upload`].
+    /// Before the first [`AlphaBuffers::upload`] (the shadow pipeline makes
+    /// one when it is made).
     pub fn inputs(&self) -> AlphaInputs<'_> {
         if self.present {
             AlphaInputs {
@@ -98,12 +104,7 @@ impl AlphaBuffers {
                 alphas: self.alphas.slice(),
             }
         } else {
-            let none = self.none.slice();
-            AlphaInputs {
-                records: none,
-                textures: none,
-                alphas: none,
-            }
+            AlphaInputs::placeholder(self.none.slice())
         }
     }
 

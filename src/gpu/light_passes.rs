@@ -186,11 +186,12 @@ impl LightPasses {
                 &mut *soft_occlusion,
             );
             let first = k == 0;
-            if let Some(ran) = cast(r, samples, tests, counters, round_light.as_ref(), first)? {
+            if let Some(ran) = cast(r, samples, tests, counters, round_light.as_deref(), first)? {
                 return Ok(ran);
             }
         }
-        // Visibility = visible light samples / light samples.
+        // Visibility = visible light samples / light samples (no round's:
+        // its timing has no round prefix).
         r.set_round(CasterRound::All);
         match soft {
             None => resolve.record_hard(r, texel_lists, &occlusion.shadowed)?,

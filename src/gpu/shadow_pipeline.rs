@@ -29,28 +29,28 @@ pub struct ShadowPipeline {
 impl ShadowPipeline {
     /// Builds every pipeline.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
+        // No alpha-tested triangles until set_alpha says otherwise.
+        let mut alpha = AlphaBuffers::new();
+        alpha.upload(ctx, &AlphaTables::default())?;
         Ok(ShadowPipeline {
             passes: LightPasses::new(ctx)?,
             batches: Batches::new(),
             uploaded_samples: GrowBuffer::storage("view_samples"),
             uploaded_triangles: GrowBuffer::storage("triangles"),
-            alpha: AlphaBuffers::new(),
+            alpha,
         })
     }
 
     /// The alpha tests of the triangles the next runs take (their
     /// [`GpuTriangle`]s marked by [`crate::gpu::alpha::mark_alpha_triangles`]
-    /// with the same tables); empty tables: every caster is opaque. Runs
-    /// before the first call have no alpha-tested casters.
+    /// with the same tables); empty tables (as before the first call):
+    /// every caster is opaque.
     pub fn set_alpha(&mut self, ctx: &GpuContext, tables: &AlphaTables) -> Result<()> {
         self.alpha.upload(ctx, tables)
     }
 
     /// The tables of the last [`ShadowPipeline::set_alpha`] (a placeholder
     /// without alpha-tested triangles) and whether there are any.
-    ///
-    /// # Panics
-    /// Before the first `set_alpha` or run.
     pub fn alpha(&self) -> (AlphaInputs<'_>, bool) {
         (self.alpha.inputs(), self.alpha.present())
     }
@@ -75,9 +75,6 @@ impl ShadowPipeline {
             .uploaded_triangles
             .get(ctx, 48 * triangles.len() as u64)?;
         ctx.upload_staged(tris, 0, triangles)?;
-        if !self.alpha.uploaded() {
-            self.alpha.upload(ctx, &AlphaTables::default())?;
-        }
         let inputs = LightInputs {
             samples: self.uploaded_samples.slice(),
             n: count(view_samples.len(), "view samples")?,
@@ -115,9 +112,6 @@ impl ShadowPipeline {
         resolution: u32,
         soft: Option<&SoftLight>,
     ) -> Result<ShadowOutput> {
-        if !self.alpha.uploaded() {
-            self.alpha.upload(ctx, &AlphaTables::default())?;
-        }
         let inputs = LightInputs {
             samples: samples.whole(),
             n: count(n, "view samples")?,

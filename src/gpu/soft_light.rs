@@ -52,12 +52,19 @@ impl SoftLight {
     /// casters are tested per light sample (look-up mode: every bit the
     /// table leaves possible goes to the unsure list), so the approximate
     /// mode's round of them runs in exact mode.
-    pub fn for_round(&self, round: crate::gpu::light_frame::CasterRound) -> SoftLight {
-        let mut sl = self.clone();
-        if round == crate::gpu::light_frame::CasterRound::Alpha && sl.mode == SoftMode::Approx {
-            sl.mode = SoftMode::Exact;
+    pub fn for_round(
+        &self,
+        round: crate::gpu::light_frame::CasterRound,
+    ) -> std::borrow::Cow<'_, SoftLight> {
+        use std::borrow::Cow;
+        if round == crate::gpu::light_frame::CasterRound::Alpha && self.mode == SoftMode::Approx {
+            Cow::Owned(SoftLight {
+                mode: SoftMode::Exact,
+                ..self.clone()
+            })
+        } else {
+            Cow::Borrowed(self)
         }
-        sl
     }
 
     /// 128-sample blocks of the light.

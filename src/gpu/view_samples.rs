@@ -250,12 +250,7 @@ impl ViewSamplePass {
         ];
         let tri_bits = tri_buf.slice(0, 48 * nt.max(1) as u64)?;
         self.none.get(ctx, 16)?;
-        let none = self.none.slice();
-        let placeholder = AlphaInputs {
-            records: none,
-            textures: none,
-            alphas: none,
-        };
+        let placeholder = AlphaInputs::placeholder(self.none.slice());
         let [records, textures, alphas] = alpha.unwrap_or(placeholder).bindings();
         let raster_bindings = [
             Binding::uniform_texel(tri_bits, RGBA32UI),

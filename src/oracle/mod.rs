@@ -262,15 +262,6 @@ impl Oracle {
         }
     }
 
-    /// Whether alpha-tested triangle `triangle` (global id) is opaque at
-    /// the world point `p` of its plane (by its alpha test,
-    /// [`crate::cpu::alpha`]); `None` for an opaque triangle.
-    pub fn alpha_opaque_at(&self, triangle: u32, p: DVec3) -> Option<bool> {
-        let c = self.coverage.get(triangle as usize)?.as_ref()?;
-        let (b1, b2) = c.barycentrics(p - self.origin);
-        Some(c.opaque(b1, b2))
-    }
-
     /// Whether alpha-tested triangle `triangle`'s opacity at world point
     /// `p` of its plane differs somewhere within `radius` of `p` in that
     /// plane (at the eight points of a circle of that radius): the

@@ -116,19 +116,24 @@ impl Engine {
         let lv = light_view(light, eye).ok_or_else(|| {
             Error::InvalidInput("hard shadows need a point or directional light".into())
         })?;
+        let (vs, ts) = self.user_inputs(scene, eye, samples)?;
+        self.run_hard(&vs, &ts, &lv, light_texels)
+    }
+
+    /// User view samples and the scene's triangles in GPU form, the
+    /// alpha-tested ones marked and their tables handed to the shadow
+    /// passes.
+    fn user_inputs(
+        &mut self,
+        scene: &Scene,
+        eye: DVec3,
+        samples: &[Option<ViewSample>],
+    ) -> Result<(Vec<GpuViewSample>, Vec<GpuTriangle>)> {
         let (vs, mut ts) = user_gpu_inputs(scene, eye, samples);
         let tables = AlphaTables::new(scene);
         mark_alpha_triangles(&mut ts, &tables);
-        validate_gpu_inputs(&vs, &ts, &lv)?;
         self.shadows.set_alpha(&self.ctx, &tables)?;
-        let out = self
-            .shadows
-            .run(&self.ctx, &vs, &ts, &lv, light_texels, None)?;
-        let stats = ShadowStats::new(&out, light_texels, lv.face_count(), None);
-        Ok(HardShadowResult {
-            lit: out.lit,
-            stats,
-        })
+        Ok((vs, ts))
     }
 
     /// Soft-shadow visibility (paper §4) of user-supplied view samples (as in
@@ -146,10 +151,7 @@ impl Engine {
         settings.validate()?;
         let (sl, lv) = soft_light(light, eye, settings)
             .ok_or_else(|| Error::InvalidInput("soft shadows need a light with extent".into()))?;
-        let (vs, mut ts) = user_gpu_inputs(scene, eye, samples);
-        let tables = AlphaTables::new(scene);
-        mark_alpha_triangles(&mut ts, &tables);
-        self.shadows.set_alpha(&self.ctx, &tables)?;
+        let (vs, ts) = self.user_inputs(scene, eye, samples)?;
         let texels = settings.soft_light_texels;
         self.shadows.set_clusters(settings.clusters);
         let out = self
@@ -174,8 +176,20 @@ impl Engine {
         light: &LightView,
         light_texels: u32,
     ) -> Result<HardShadowResult> {
-        validate_gpu_inputs(view_samples, triangles, light)?;
         self.shadows.set_alpha(&self.ctx, &AlphaTables::default())?;
+        self.run_hard(view_samples, triangles, light, light_texels)
+    }
+
+    /// The hard-shadow passes on inputs in GPU form, with the alpha tables
+    /// set last.
+    fn run_hard(
+        &mut self,
+        view_samples: &[GpuViewSample],
+        triangles: &[GpuTriangle],
+        light: &LightView,
+        light_texels: u32,
+    ) -> Result<HardShadowResult> {
+        validate_gpu_inputs(view_samples, triangles, light)?;
         let out = self.shadows.run(
             &self.ctx,
             view_samples,

@@ -23,7 +23,7 @@ use super::buffer::Buffer;
 use super::commands::CommandRecorder;
 use super::context::GpuContext;
 use super::device::Device;
-use super::pipeline::{Binding, DescriptorKind, DescriptorLayout};
+use super::pipeline::{create_set_layout, Binding, DescriptorKind, DescriptorLayout};
 use super::shader::ShaderModule;
 use crate::{Error, Result};
 
@@ -359,24 +359,12 @@ impl GraphicsPipeline {
             offset: 0,
             size: desc.push_constant_bytes,
         }];
-        let layout_bindings: Vec<_> = desc
-            .bindings
-            .iter()
-            .enumerate()
-            .map(|(i, k)| {
-                vk::DescriptorSetLayoutBinding::default()
-                    .binding(i as u32)
-                    .descriptor_type(k.vk())
-                    .descriptor_count(1)
-                    .stage_flags(vk::ShaderStageFlags::FRAGMENT)
-            })
-            .collect();
         let set_layouts;
         let mut layout_info = vk::PipelineLayoutCreateInfo::default();
         if !desc.bindings.is_empty() {
-            let set_info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&layout_bindings);
-            pipeline.set_layout = unsafe { d.create_descriptor_set_layout(&set_info, None) }
-                .map_err(|e| err("descriptor set layout", e))?;
+            pipeline.set_layout =
+                create_set_layout(d, desc.bindings, vk::ShaderStageFlags::FRAGMENT)
+                    .map_err(|e| err("descriptor set layout", e))?;
             set_layouts = [pipeline.set_layout];
             layout_info = layout_info.set_layouts(&set_layouts);
         }

@@ -117,6 +117,28 @@ pub struct ComputePipelineDesc<'a> {
     pub specialization: &'a [(u32, u32)],
 }
 
+/// A set-0 layout with one descriptor of each kind in `bindings` (binding
+/// 0, 1, 2, ...), visible to `stage`.
+pub(crate) fn create_set_layout(
+    d: &ash::Device,
+    bindings: &[DescriptorKind],
+    stage: vk::ShaderStageFlags,
+) -> std::result::Result<vk::DescriptorSetLayout, vk::Result> {
+    let layout_bindings: Vec<_> = bindings
+        .iter()
+        .enumerate()
+        .map(|(i, k)| {
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(i as u32)
+                .descriptor_type(k.vk())
+                .descriptor_count(1)
+                .stage_flags(stage)
+        })
+        .collect();
+    let info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&layout_bindings);
+    unsafe { d.create_descriptor_set_layout(&info, None) }
+}
+
 /// A pipeline's set-0 layout, as the recorder writes descriptor sets for it.
 pub trait DescriptorLayout {
     /// Name, for error messages.
@@ -169,21 +191,9 @@ impl ComputePipeline {
             Error::Vulkan(format!("{what} of pipeline \"{}\": {e:?}", desc.name))
         };
 
-        let layout_bindings: Vec<_> = desc
-            .bindings
-            .iter()
-            .enumerate()
-            .map(|(i, k)| {
-                vk::DescriptorSetLayoutBinding::default()
-                    .binding(i as u32)
-                    .descriptor_type(k.vk())
-                    .descriptor_count(1)
-                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
-            })
-            .collect();
-        let set_info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&layout_bindings);
-        pipeline.set_layout = unsafe { device.raw().create_descriptor_set_layout(&set_info, None) }
-            .map_err(|e| err("descriptor set layout", e))?;
+        pipeline.set_layout =
+            create_set_layout(device.raw(), desc.bindings, vk::ShaderStageFlags::COMPUTE)
+                .map_err(|e| err("descriptor set layout", e))?;
 
         let set_layouts = [pipeline.set_layout];
         let ranges = [vk::PushConstantRange {

@@ -98,3 +98,39 @@ pub const SCALE_CASES: [(f64, glam::DVec3); 3] = [
     (1e5, glam::DVec3::ZERO),
     (1.0, glam::DVec3::new(1e4, 3e3, -1e4)),
 ];
+
+/// The light samples as the engine has them (camera-relative f32), back
+/// in world space.
+pub fn engine_light(
+    light: &alias_free_shadows::light::Light,
+    eye: glam::DVec3,
+) -> alias_free_shadows::light::LightSamples {
+    use alias_free_shadows::light::LightSamples;
+    match light.light_samples() {
+        LightSamples::Positions(p) => LightSamples::Positions(
+            p.iter()
+                .map(|q| eye + (*q - eye).as_vec3().as_dvec3())
+                .collect(),
+        ),
+        d => d,
+    }
+}
+
+/// Standard base64 with padding (data URIs in test glTF files).
+pub fn base64(bytes: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in bytes.chunks(3) {
+        let n = (c[0] as u32) << 16
+            | (*c.get(1).unwrap_or(&0) as u32) << 8
+            | *c.get(2).unwrap_or(&0) as u32;
+        for k in 0..4 {
+            if k <= c.len() {
+                s.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                s.push('=');
+            }
+        }
+    }
+    s
+}
