@@ -162,6 +162,12 @@ pub struct DumpScene {
     pub camera: Camera,
     /// Every light, in scene order (light K of `visibility_K.exr`).
     pub lights: Vec<DumpLight>,
+    /// Accumulated dumps (`afs render --frames N`): per frame, every light
+    /// with the samples that frame used; `visibility_K.exr` is then the
+    /// mean over the frames. Empty (and absent from the file) for a single
+    /// frame.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub frames: Vec<Vec<DumpLight>>,
 }
 
 /// One frame's results, in memory: what `--dump DIR` writes and

@@ -4,8 +4,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use alias_free_shadows::dump::{compare, Dump};
-use alias_free_shadows::render::{render_reference, Engine, Frame, FrameOptions};
+use alias_free_shadows::render::{render_reference, Accumulator, Engine, Frame, FrameOptions};
 use alias_free_shadows::scene::file::{self, SceneDescription, SoftMode};
+use alias_free_shadows::shade::ShadingNormals;
 use alias_free_shadows::vulkan::ContextOptions;
 use alias_free_shadows::{scene, vulkan, Error, Result};
 use clap::{Args, Parser, Subcommand};
@@ -166,6 +167,15 @@ struct RenderArgs {
     /// frame pays for pipeline compilation; later ones show warm timings).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
     repeat: u32,
+    /// Temporal jitter (paper §4.2): render this many frames, each with
+    /// fresh light samples (every light's seed mixed with the frame's
+    /// index; frame 0 is the plain frame), and write their mean visibility,
+    /// which converges to the visibility of all their samples together.
+    /// With --dump, DIR holds the mean (its scene.json lists every frame's
+    /// samples) and DIR/frame-000, ... each frame's own dump, exact for its
+    /// samples: `afs reference` with the same --frames writes the oracle's.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    frames: u32,
 }
 
 impl RenderArgs {
@@ -217,9 +227,49 @@ impl RenderArgs {
         if self.no_clusters {
             desc.shadows.clusters = false;
         }
+        if self.frames > 1 && self.repeat > 1 {
+            return Err(Error::InvalidInput(
+                "--frames and --repeat do not go together: --repeat renders one frame again \
+                 for its timings, --frames renders new ones and averages them"
+                    .into(),
+            ));
+        }
         desc.validate()?;
         Ok(desc)
     }
+}
+
+/// `--frames N`: renders N frames of `desc` with fresh light samples
+/// (`render` makes one, GPU or oracle), writes each frame's dump into
+/// `DIR/frame-NNN` with `--dump DIR`, and returns the accumulated frame.
+fn accumulate(
+    args: &RenderArgs,
+    desc: &SceneDescription,
+    mut render: impl FnMut(&SceneDescription) -> Result<Frame>,
+) -> Result<Frame> {
+    let mut acc = Accumulator::new();
+    let mut last = None;
+    let mut ms = 0.0;
+    for f in 0..args.frames {
+        if !args.quiet {
+            eprintln!("frame {}/{}", f + 1, args.frames);
+        }
+        let frame = render(&acc.next_frame(desc))?;
+        if let Some(dir) = &args.dump {
+            frame
+                .dump
+                .write(&dir.join(format!("frame-{f:03}")), &frame.image)?;
+        }
+        ms += frame.stats.total_ms();
+        acc.add(&frame);
+        last = Some(frame);
+    }
+    let last = last.ok_or_else(|| Error::InvalidInput("--frames must be at least 1".into()))?;
+    let normals = ShadingNormals::new(&desc.scene);
+    if !args.quiet {
+        eprintln!("{} frames accumulated in {ms:.1} ms", args.frames);
+    }
+    Ok(acc.frame(desc, &normals, &last))
 }
 
 /// Writes the image and the dump. The image goes under a temporary name
@@ -366,22 +416,29 @@ fn run(cli: Cli) -> Result<()> {
             let options = FrameOptions {
                 progress: !args.quiet,
             };
-            let mut frame = engine.render(&desc, options)?;
-            for _ in 1..args.repeat {
-                frame = engine.render(&desc, options)?;
-            }
+            let frame = if args.frames > 1 {
+                accumulate(&args, &desc, |d| engine.render(d, options))?
+            } else {
+                let mut frame = engine.render(&desc, options)?;
+                for _ in 1..args.repeat {
+                    frame = engine.render(&desc, options)?;
+                }
+                frame
+            };
             write_outputs(&args, &frame)?;
             report(&desc, &frame, &args);
         }
         Command::Reference(args) => {
             let desc = args.scene()?;
             check_output_paths(&args)?;
-            let frame = render_reference(
-                &desc,
-                FrameOptions {
-                    progress: !args.quiet,
-                },
-            )?;
+            let options = FrameOptions {
+                progress: !args.quiet,
+            };
+            let frame = if args.frames > 1 {
+                accumulate(&args, &desc, |d| render_reference(d, options))?
+            } else {
+                render_reference(&desc, options)?
+            };
             write_outputs(&args, &frame)?;
             report(&desc, &frame, &args);
         }

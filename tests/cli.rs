@@ -958,3 +958,69 @@ fn light_flag_replaces_the_scene_lights() {
         &["--light lamp", "unknown kind \"lamp\""],
     );
 }
+
+/// `--frames N`: the dump holds the mean of N frames, each frame's own dump
+/// in `frame-NNN` and every frame's samples in `scene.json`; `afs
+/// reference --frames N` writes the oracle's frames with the same samples;
+/// `--frames` with `--repeat` is refused.
+#[test]
+fn frames_accumulate_into_the_dump() {
+    use alias_free_shadows::dump::Dump;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let common = [
+        "builtin:demo",
+        "--width",
+        "24",
+        "--height",
+        "24",
+        "--samples",
+        "16",
+        "--frames",
+        "3",
+        "--quiet",
+    ];
+    let run = |cmd: &str, dump: &str| {
+        let mut a = vec![cmd];
+        a.extend_from_slice(&common);
+        a.extend_from_slice(&["--dump", dump, "-o", "x.png"]);
+        let o = afs(&a, d);
+        assert!(o.status.success(), "{}", text(&o));
+    };
+    run("render", "gpu");
+    run("reference", "oracle");
+    let mean = Dump::read(&d.join("gpu")).unwrap();
+    assert_complete_dump(&d.join("gpu"));
+    assert_eq!(mean.scene.frames.len(), 3);
+    let mut sums = vec![0.0f64; mean.visibility[0].len()];
+    for f in 0..3 {
+        let name = format!("frame-{f:03}");
+        assert_complete_dump(&d.join("gpu").join(&name));
+        let frame = Dump::read(&d.join("gpu").join(&name)).unwrap();
+        let oracle = Dump::read(&d.join("oracle").join(&name)).unwrap();
+        assert!(frame.scene.frames.is_empty());
+        assert_eq!(
+            frame.scene.lights, mean.scene.frames[f],
+            "{name}: samples listed"
+        );
+        assert_eq!(
+            frame.scene.lights[0].samples, oracle.scene.lights[0].samples,
+            "{name}: the oracle's frame has the same samples"
+        );
+        for (s, p) in sums.iter_mut().zip(&frame.visibility[0]) {
+            *s += p[0] as f64;
+        }
+    }
+    assert_ne!(
+        mean.scene.frames[0][0].samples,
+        mean.scene.frames[1][0].samples
+    );
+    for (s, p) in sums.iter().zip(&mean.visibility[0]) {
+        assert_eq!(p[0], (s / 3.0) as f32);
+    }
+    expect_error(
+        &["render", "builtin:demo", "--frames", "2", "--repeat", "2"],
+        d,
+        &["--frames and --repeat do not go together"],
+    );
+}

@@ -60,6 +60,7 @@ pub fn make_dump(
                 .zip(light_samples)
                 .map(|(l, s)| DumpLight::new(l, s))
                 .collect(),
+            frames: Vec::new(),
         },
         stats: stats.to_json(),
     }

@@ -110,6 +110,24 @@ impl Engine {
         })
     }
 
+    /// Renders the next frame of `acc` ([`super::Accumulator`]): `desc`
+    /// with fresh light samples (restarting the accumulation when `desc`
+    /// changed), and returns the accumulated frame: the mean visibility
+    /// over the frames, shaded. The frame's own result is the last one
+    /// [`super::Accumulator::frames`] lists, exact for its samples.
+    pub fn render_accumulated(
+        &mut self,
+        desc: &SceneDescription,
+        acc: &mut super::Accumulator,
+        options: FrameOptions,
+    ) -> Result<Frame> {
+        let frame_desc = acc.next_frame(desc);
+        let frame = self.render(&frame_desc, options)?;
+        acc.add(&frame);
+        let (normals, _) = self.shading.get(&desc.scene);
+        Ok(acc.frame(desc, normals, &frame))
+    }
+
     /// Light `k`'s shadow passes over the frame's `n` view samples and `nt`
     /// triangles, which stay on the GPU between passes.
     fn light(

@@ -16,8 +16,10 @@
 //! The public API is [`Engine`] ([`engine`]): frames of a scene, and the
 //! visibility of the caller's own view samples. Around it: [`inputs`] (the
 //! caller's data in GPU form), [`validate`] (the checks on it) and
-//! [`dump_assembly`] (a frame's dump).
+//! [`dump_assembly`] (a frame's dump); [`accumulate`] (frames with fresh
+//! light samples, averaged).
 
+pub mod accumulate;
 pub mod dump_assembly;
 pub mod engine;
 pub mod gpu_frame;
@@ -25,6 +27,7 @@ pub mod inputs;
 pub mod reference;
 pub mod validate;
 
+pub use accumulate::{frame_lights, frame_seed, Accumulator};
 pub use dump_assembly::make_dump;
 pub use engine::{Engine, HardShadowResult, SoftShadowResult};
 pub(crate) use inputs::user_gpu_inputs;
@@ -40,6 +43,7 @@ use crate::stats::Stats;
 
 /// A rendered frame: the dump (view samples, visibility, scene, stats), the
 /// shaded image and the statistics.
+#[derive(Clone)]
 pub struct Frame {
     /// Everything the frame computed, as `--dump DIR` writes it.
     pub dump: Dump,
