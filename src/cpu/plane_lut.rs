@@ -217,6 +217,16 @@ fn cell_centre(k: u32, res: u32) -> f32 {
 /// (fixed j) run in parallel, each writing its texels, which are runs over
 /// i at each d, in order.
 pub fn build_bounds_lut(normalized: &[Vec3], res: u32) -> Vec<BlockBits> {
+    let texels = (res as usize).pow(3) * blocks(normalized.len()) * 2;
+    let mut lut = vec![[0u32; 4]; texels];
+    build_bounds_lut_into(normalized, res, &mut lut);
+    lut
+}
+
+/// [`build_bounds_lut`] into `lut` (the GPU buffer's mapped memory, or a
+/// host vector), which must hold exactly its texels: every one is written,
+/// so `lut` need not start zeroed.
+pub fn build_bounds_lut_into(normalized: &[Vec3], res: u32, lut: &mut [BlockBits]) {
     use rayon::prelude::*;
     let nb = blocks(normalized.len());
     let r = res as usize;
@@ -237,7 +247,7 @@ pub fn build_bounds_lut(normalized: &[Vec3], res: u32) -> Vec<BlockBits> {
         }
         k as usize
     };
-    let mut lut = vec![[0u32; 4]; r * r * r * nb * 2];
+    assert_eq!(lut.len(), r * r * r * nb * 2, "the table's size");
     struct Out(*mut BlockBits);
     unsafe impl Sync for Out {}
     let out = Out(lut.as_mut_ptr());
@@ -274,7 +284,6 @@ pub fn build_bounds_lut(normalized: &[Vec3], res: u32) -> Vec<BlockBits> {
             }
         }
     });
-    lut
 }
 
 #[cfg(test)]

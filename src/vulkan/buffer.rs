@@ -213,6 +213,15 @@ impl Buffer {
             .map(|p| p.as_ptr() as *mut u8)
     }
 
+    /// The whole buffer's mapped memory, if host-coherent and mapped (see
+    /// [`Buffer::write_mapped`] for who may write it when).
+    pub fn mapped_bytes(&self) -> Option<&[u8]> {
+        // SAFETY: the mapping covers the buffer's size and lives as long as
+        // the buffer (the borrow).
+        self.mapped_ptr()
+            .map(|p| unsafe { std::slice::from_raw_parts(p as *const u8, self.size as usize) })
+    }
+
     fn check_range(&self, offset: u64, bytes: u64) -> Result<()> {
         self.slice(offset, bytes).map(|_| ())
     }
@@ -453,6 +462,35 @@ impl GpuContext {
             buffer.write_mapped(offset, data)
         } else {
             self.upload_staged(buffer, offset, data)
+        }
+    }
+
+    /// Fills the whole of `buffer` with what `fill` writes into the slice it
+    /// is given: the mapped memory itself when host-coherent (no copy: a
+    /// table read from disk goes straight from the file into the buffer),
+    /// else a host vector that is then uploaded. The slice starts zeroed
+    /// only in the second case. Waits until done; the caller makes sure no
+    /// GPU work in flight uses the buffer.
+    pub fn upload_with<T: Pod, R>(
+        &self,
+        buffer: &Buffer,
+        fill: impl FnOnce(&mut [T]) -> Result<R>,
+    ) -> Result<R> {
+        let count = (buffer.size() / std::mem::size_of::<T>() as u64) as usize;
+        match buffer.mapped_ptr() {
+            Some(ptr) if (ptr as usize).is_multiple_of(std::mem::align_of::<T>()) => {
+                // SAFETY: the mapping covers the buffer's size, is aligned for
+                // T (checked), T is Pod (any bytes are a valid T) and the GPU
+                // does not use it now (caller's contract).
+                let slice = unsafe { std::slice::from_raw_parts_mut(ptr as *mut T, count) };
+                fill(slice)
+            }
+            _ => {
+                let mut host = vec![T::zeroed(); count];
+                let r = fill(&mut host)?;
+                self.upload_staged(buffer, 0, &host)?;
+                Ok(r)
+            }
         }
     }
 
