@@ -348,6 +348,7 @@ pub fn bench_light(desc: &SceneDescription, samples: u32) -> Result<Light> {
         seed: first.map_or(7, |l| l.seed),
         color: [1.0; 3],
         intensity: 1.0,
+        emission: None,
     })
 }
 

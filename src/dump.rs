@@ -5,6 +5,7 @@
 //! - `position.exr`: RGB = view-sample position minus the camera eye, A = 1 where there is a view sample;
 //! - `normal.exr`: RGB = unit geometric normal facing the camera, A as above;
 //! - `visibility_K.exr`: R = visible fraction of light K's samples, G = 1 where the shadow passes evaluated the sample, A as above;
+//! - `visibility_K_rgb.exr` (lights with an emission texture): RGB = the visible share of each channel's emission, A as above;
 //! - `scene.json`: camera and lights (with their exact world-space samples);
 //! - `stats.json`: device, settings, milliseconds per pass and counters;
 //! - `image.png`: the shaded image.
@@ -185,6 +186,10 @@ pub struct Dump {
     pub normal: Vec<[f32; 4]>,
     /// Per light, per pixel: [visible fraction, evaluated by the shadow passes (1/0), 0, has view sample].
     pub visibility: Vec<Vec<[f32; 4]>>,
+    /// Per light with an emission texture (`None` for the others), per
+    /// pixel: [visible share of red, green, blue emission, has view sample]
+    /// (`visibility_K_rgb.exr`, [`crate::light::channel_visibility`]).
+    pub visibility_rgb: Vec<Option<Vec<[f32; 4]>>>,
     /// `scene.json`: the camera and the lights with their samples.
     pub scene: DumpScene,
     /// `stats.json` (free-form: device, settings, timings, counters).
@@ -238,6 +243,7 @@ impl Dump {
             || name
                 .strip_prefix("visibility_")
                 .and_then(|n| n.strip_suffix(".exr"))
+                .map(|n| n.strip_suffix("_rgb").unwrap_or(n))
                 .is_some_and(|k| k.parse::<usize>().is_ok())
     }
 
@@ -258,6 +264,11 @@ impl Dump {
         write_exr(&tmp("normal.exr"), w, h, &self.normal)?;
         for (k, v) in self.visibility.iter().enumerate() {
             write_exr(&tmp(&format!("visibility_{k}.exr")), w, h, v)?;
+        }
+        for (k, v) in self.visibility_rgb.iter().enumerate() {
+            if let Some(v) = v {
+                write_exr(&tmp(&format!("visibility_{k}_rgb.exr")), w, h, v)?;
+            }
         }
         write_json(&tmp("scene.json"), &self.scene)?;
         write_json(&tmp("stats.json"), &self.stats)?;
@@ -296,6 +307,22 @@ impl Dump {
             }
             visibility.push(v);
         }
+        let mut visibility_rgb = Vec::new();
+        for k in 0..scene.lights.len() {
+            let path = dir.join(format!("visibility_{k}_rgb.exr"));
+            visibility_rgb.push(if path.exists() {
+                let (vw, vh, v) = read_exr(&path)?;
+                if (vw, vh) != (width, height) {
+                    return Err(Error::InvalidInput(format!(
+                        "{}: visibility_{k}_rgb.exr is {vw}x{vh}, position.exr is {width}x{height}",
+                        dir.display()
+                    )));
+                }
+                Some(v)
+            } else {
+                None
+            });
+        }
         if (nw, nh) != (width, height) {
             return Err(Error::InvalidInput(format!(
                 "{}: normal.exr is {nw}x{nh}, position.exr is {width}x{height}",
@@ -308,6 +335,7 @@ impl Dump {
             position,
             normal,
             visibility,
+            visibility_rgb,
             scene,
             stats,
         })

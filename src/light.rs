@@ -105,6 +105,58 @@ pub struct Light {
     pub color: [f32; 3],
     /// Scale of `color` in shading (≥ 0); visibility does not depend on it.
     pub intensity: f32,
+    /// An emission texture (rect and disk lights only): each light sample
+    /// emits the texture's colour at its place on the light (times
+    /// `color`), and the light's visibility is then also given per channel
+    /// ([`Light::sample_colors`], [`channel_visibility`]).
+    pub emission: Option<LightEmission>,
+}
+
+/// A light's emission texture.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightEmission {
+    /// Where it was read from (for messages).
+    pub path: String,
+    /// sRGB-encoded RGB. Its u axis runs along the light's `tangent`, its
+    /// v axis along `normal x tangent`, row 0 at the +v edge (an image
+    /// seen from the side the light emits towards, top up when the
+    /// bitangent is up); a disk uses its bounding square.
+    pub image: std::sync::Arc<image::RgbImage>,
+}
+
+/// Per channel, the visible share of a light's emission: the sum of the
+/// visible samples' colours over the sum of all samples' colours (0 for a
+/// channel no sample emits). `visible(j)` tells whether light sample `j`
+/// is visible. Sums in f64, in sample order.
+pub fn channel_visibility(colors: &[[f32; 3]], visible: impl Fn(usize) -> bool) -> [f32; 3] {
+    let mut seen = [0.0f64; 3];
+    let mut all = [0.0f64; 3];
+    for (j, c) in colors.iter().enumerate() {
+        let v = visible(j);
+        for k in 0..3 {
+            all[k] += c[k] as f64;
+            if v {
+                seen[k] += c[k] as f64;
+            }
+        }
+    }
+    std::array::from_fn(|k| {
+        if all[k] > 0.0 {
+            (seen[k] / all[k]) as f32
+        } else {
+            0.0
+        }
+    })
+}
+
+/// sRGB-encoded 8-bit value to linear.
+fn srgb_to_linear(v: u8) -> f32 {
+    let c = v as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
 }
 
 /// The light samples that visibility is computed against.
@@ -174,6 +226,48 @@ impl Light {
             LightShape::Explicit { positions } => (!positions.is_empty())
                 .then(|| positions.iter().sum::<DVec3>() / positions.len() as f64),
         }
+    }
+
+    /// Per light sample (in [`Light::light_samples`] order), the linear RGB
+    /// it emits: the emission texture's texel under the sample (nearest
+    /// texel, sRGB decoded) times `color`; `None` without an emission
+    /// texture.
+    pub fn sample_colors(&self) -> Option<Vec<[f32; 3]>> {
+        let e = self.emission.as_ref()?;
+        let (centre, normal, tangent, half) = match &self.shape {
+            LightShape::Rect {
+                position,
+                size,
+                normal,
+                tangent,
+            } => (*position, *normal, *tangent, *size * 0.5),
+            LightShape::Disk {
+                position,
+                radius,
+                normal,
+                tangent,
+            } => (*position, *normal, *tangent, DVec2::splat(*radius)),
+            _ => return None,
+        };
+        let bitangent = normal.cross(tangent);
+        let (w, h) = e.image.dimensions();
+        let LightSamples::Positions(points) = self.light_samples() else {
+            return None;
+        };
+        Some(
+            points
+                .iter()
+                .map(|p| {
+                    let d = *p - centre;
+                    let u = 0.5 + 0.5 * d.dot(tangent) / half.x;
+                    let v = 0.5 + 0.5 * d.dot(bitangent) / half.y;
+                    let x = ((u * w as f64).floor() as i64).clamp(0, w as i64 - 1) as u32;
+                    let y = (((1.0 - v) * h as f64).floor() as i64).clamp(0, h as i64 - 1) as u32;
+                    let px = e.image.get_pixel(x, y).0;
+                    std::array::from_fn(|k| srgb_to_linear(px[k]) * self.color[k])
+                })
+                .collect(),
+        )
     }
 
     /// Checks every field (finite, positive sizes, unit-able vectors, sample
@@ -281,6 +375,20 @@ impl Light {
                 "`intensity` must be finite and >= 0, got {}",
                 self.intensity
             ));
+        }
+        if let Some(e) = &self.emission {
+            if !matches!(
+                self.shape,
+                LightShape::Rect { .. } | LightShape::Disk { .. }
+            ) {
+                return bad(format!(
+                    "`texture` {}: only rect and disk lights take an emission texture",
+                    e.path
+                ));
+            }
+            if e.image.width() == 0 || e.image.height() == 0 {
+                return bad(format!("`texture` {}: the image is empty", e.path));
+            }
         }
         Ok(())
     }
@@ -650,6 +758,7 @@ mod tests {
             seed: 7,
             color: [1.0; 3],
             intensity: 1.0,
+            emission: None,
         }
     }
 

@@ -170,6 +170,31 @@ pub fn shade(
     lights: &[Light],
     visibility: &[Vec<f32>],
 ) -> image::RgbImage {
+    shade_coloured(scene, normals, view, lights, visibility, &[])
+}
+
+/// [`shade`] with, per light, its per-channel visibility where it has an
+/// emission texture (`visibility_rgb[k]`, [`crate::light::channel_visibility`]):
+/// such a light shines with its samples' mean colour, each channel scaled
+/// by that channel's visibility.
+pub fn shade_coloured(
+    scene: &Scene,
+    normals: &ShadingNormals,
+    view: &ViewSamples,
+    lights: &[Light],
+    visibility: &[Vec<f32>],
+    visibility_rgb: &[Option<Vec<[f32; 3]>>],
+) -> image::RgbImage {
+    // Per light: its colour (the samples' mean for a textured light).
+    let colors: Vec<[f32; 3]> = lights
+        .iter()
+        .map(|l| match l.sample_colors() {
+            Some(c) if !c.is_empty() => std::array::from_fn(|k| {
+                (c.iter().map(|s| s[k] as f64).sum::<f64>() / c.len() as f64) as f32
+            }),
+            _ => l.color,
+        })
+        .collect();
     let (w, h) = (view.width, view.height);
     let surfaces = Surfaces::new(scene);
     let mut img = image::RgbImage::new(w, h);
@@ -214,7 +239,14 @@ pub fn shade(
                             } else {
                                 s.normal.dot(to_light(light, s.position)).max(0.0)
                             };
-                            for ((ch, lc), a) in c.iter_mut().zip(light.color).zip(albedo) {
+                            let rgb = visibility_rgb
+                                .get(k)
+                                .and_then(|v| v.as_ref())
+                                .and_then(|v| v.get(i));
+                            for (n, ((ch, lc), a)) in
+                                c.iter_mut().zip(colors[k]).zip(albedo).enumerate()
+                            {
+                                let v = rgb.map_or(v, |rgb| rgb[n] as f64);
                                 *ch += a * lambert * v * lc as f64 * light.intensity as f64;
                             }
                         }

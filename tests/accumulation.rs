@@ -5,15 +5,13 @@
 //! of 128 samples come closer to a 4096-sample oracle reference than one
 //! frame does.
 
-use alias_free_shadows::light::{LightSamples, LightShape};
-use alias_free_shadows::oracle::{LightTarget, Oracle};
+use alias_free_shadows::light::LightShape;
 use alias_free_shadows::render::{render_reference, Accumulator, Engine, Frame, FrameOptions};
 use alias_free_shadows::scene::file::{self, SceneDescription};
 use alias_free_shadows::vulkan::ContextOptions;
 
 mod common;
-use common::bands::in_any_band;
-use common::engine_light;
+use common::pixels_off_the_oracle;
 
 fn engine() -> Engine {
     Engine::new(&ContextOptions::validated()).expect("engine")
@@ -37,42 +35,6 @@ fn visibility(frame: &Frame) -> Vec<Vec<f32>> {
         .collect()
 }
 
-/// Pixels whose visible light-sample count differs from the oracle's
-/// (given the frame's own view samples and light samples) by more pairs
-/// than lie in the documented bands; and the pixels compared.
-fn off_the_oracle(desc: &SceneDescription, frame: &Frame) -> (usize, usize) {
-    let eye = desc.camera.eye;
-    let oracle = Oracle::new(&desc.scene.triangles(), eye);
-    let light = &desc.lights[0];
-    let ls = engine_light(light, eye);
-    let LightSamples::Positions(points) = &ls else {
-        panic!("an area light")
-    };
-    let want = oracle.visibility_masks(&frame.view, &ls);
-    let n = points.len();
-    let (mut off, mut pixels) = (0, 0);
-    for (i, s) in frame.view.samples.iter().enumerate() {
-        let Some(s) = s else { continue };
-        pixels += 1;
-        let want_count = (0..n)
-            .filter(|&j| want[i][j / 64] >> (j % 64) & 1 == 1)
-            .count();
-        let got_count = (frame.dump.visibility[0][i][0] * n as f32).round() as usize;
-        let diff = got_count.abs_diff(want_count);
-        if diff == 0 {
-            continue;
-        }
-        let in_band = points
-            .iter()
-            .filter(|&&q| in_any_band(&oracle, &desc.scene, eye, s, LightTarget::Point(q)))
-            .count();
-        if in_band < diff {
-            off += 1;
-        }
-    }
-    (off, pixels)
-}
-
 #[test]
 fn each_frame_is_exact_for_its_own_samples_and_the_result_is_their_mean() {
     let mut engine = engine();
@@ -82,7 +44,7 @@ fn each_frame_is_exact_for_its_own_samples_and_the_result_is_their_mean() {
     for f in 0..4 {
         let frame_desc = acc.next_frame(&desc);
         let frame = engine.render(&frame_desc, FrameOptions::default()).unwrap();
-        let (off, pixels) = off_the_oracle(&frame_desc, &frame);
+        let (off, pixels) = pixels_off_the_oracle(&frame_desc, &frame, 0, |_, _| {});
         assert!(pixels > 1000, "frame {f}: {pixels} pixels");
         assert_eq!(off, 0, "frame {f}: {off} of {pixels} pixels off the oracle");
         acc.add(&frame);

@@ -476,6 +476,7 @@ fn random_case(seed: u64, kind: u32) -> SceneDescription {
         seed: seed + 1,
         color: [1.0; 3],
         intensity: 1.0,
+        emission: None,
     };
     SceneDescription {
         name: format!("random alpha case {seed} (light kind {kind})"),

@@ -56,6 +56,7 @@ fn light(shape: LightShape, samples: u32) -> Light {
         seed: 7,
         color: [1.0; 3],
         intensity: 1.0,
+        emission: None,
     }
 }
 

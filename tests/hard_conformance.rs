@@ -42,6 +42,7 @@ fn point(position: DVec3) -> Light {
         seed: 7,
         color: [1.0; 3],
         intensity: 1.0,
+        emission: None,
     }
 }
 

@@ -404,6 +404,7 @@ fn make_light(l: &RandomLight, centre: DVec3, scale: f64, snap: impl Fn(DVec3) -
         seed: l.seed,
         color: [1.0; 3],
         intensity: 1.0,
+        emission: None,
     }
 }
 

@@ -13,7 +13,7 @@ use crate::dump::{Dump, DumpLight};
 use crate::light::Light;
 use crate::scene::file::SceneDescription;
 use crate::scene::{Camera, Scene};
-use crate::shade::{shade, ShadingNormals};
+use crate::shade::{shade_coloured, ShadingNormals};
 
 use super::Frame;
 
@@ -146,6 +146,8 @@ pub struct Accumulator {
     inputs: Option<Inputs>,
     /// Per light, per pixel: the sum of the frames' visible fractions.
     sums: Vec<Vec<f64>>,
+    /// The same per channel, for lights with an emission texture.
+    sums_rgb: Vec<Option<Vec<[f64; 3]>>>,
     /// Per frame, per light: the light as recorded in that frame's dump.
     frames: Vec<Vec<DumpLight>>,
 }
@@ -207,11 +209,26 @@ impl Accumulator {
             || self.sums.iter().zip(vis).any(|(s, v)| s.len() != v.len())
         {
             self.sums = vis.iter().map(|v| vec![0.0; v.len()]).collect();
+            self.sums_rgb = frame
+                .dump
+                .visibility_rgb
+                .iter()
+                .map(|v| v.as_ref().map(|v| vec![[0.0; 3]; v.len()]))
+                .collect();
             self.frames.clear();
         }
         for (sum, v) in self.sums.iter_mut().zip(vis) {
             for (s, p) in sum.iter_mut().zip(v) {
                 *s += p[0] as f64;
+            }
+        }
+        for (sum, v) in self.sums_rgb.iter_mut().zip(&frame.dump.visibility_rgb) {
+            if let (Some(sum), Some(v)) = (sum, v) {
+                for (s, p) in sum.iter_mut().zip(v) {
+                    for k in 0..3 {
+                        s[k] += p[k] as f64;
+                    }
+                }
             }
         }
         self.frames.push(frame.dump.scene.lights.clone());
@@ -226,6 +243,19 @@ impl Accumulator {
             .collect()
     }
 
+    /// Per light with an emission texture, per pixel: the mean visible
+    /// share of each channel over the frames (`None` for other lights).
+    pub fn visibility_rgb(&self) -> Vec<Option<Vec<[f32; 3]>>> {
+        let n = self.frames.len().max(1) as f64;
+        self.sums_rgb
+            .iter()
+            .map(|s| {
+                s.as_ref()
+                    .map(|s| s.iter().map(|v| v.map(|x| (x / n) as f32)).collect())
+            })
+            .collect()
+    }
+
     /// The accumulated frame, from the last frame added (`last`, rendered
     /// from `desc` through [`Accumulator::next_frame`]): its view samples
     /// and statistics, the mean visibility, an image shaded with it, and a
@@ -233,12 +263,29 @@ impl Accumulator {
     /// there is more than one).
     pub fn frame(&self, desc: &SceneDescription, normals: &ShadingNormals, last: &Frame) -> Frame {
         let visibility = self.visibility();
-        let image = shade(&desc.scene, normals, &last.view, &desc.lights, &visibility);
+        let visibility_rgb = self.visibility_rgb();
+        let image = shade_coloured(
+            &desc.scene,
+            normals,
+            &last.view,
+            &desc.lights,
+            &visibility,
+            &visibility_rgb,
+        );
         let mut dump: Dump = last.dump.clone();
         for (d, v) in dump.visibility.iter_mut().zip(&visibility) {
             for (p, m) in d.iter_mut().zip(v) {
                 if p[3] > 0.0 {
                     p[0] = *m;
+                }
+            }
+        }
+        for (d, v) in dump.visibility_rgb.iter_mut().zip(&visibility_rgb) {
+            if let (Some(d), Some(v)) = (d, v) {
+                for (p, m) in d.iter_mut().zip(v) {
+                    if p[3] > 0.0 {
+                        p[..3].copy_from_slice(m);
+                    }
                 }
             }
         }

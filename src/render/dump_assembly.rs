@@ -13,6 +13,7 @@ pub fn make_dump(
     view: &ViewSamples,
     light_samples: &[LightSamples],
     visibility: &[Vec<f32>],
+    visibility_rgb: &[Option<Vec<[f32; 3]>>],
     evaluated: &[Vec<bool>],
     stats: &Stats,
 ) -> Dump {
@@ -46,12 +47,28 @@ pub fn make_dump(
                 .collect()
         })
         .collect();
+    let rgb = visibility_rgb
+        .iter()
+        .map(|v| {
+            v.as_ref().map(|v| {
+                view.samples
+                    .iter()
+                    .zip(v)
+                    .map(|(s, c)| match s {
+                        Some(_) => [c[0], c[1], c[2], 1.0],
+                        None => [0.0; 4],
+                    })
+                    .collect()
+            })
+        })
+        .collect();
     Dump {
         width: view.width,
         height: view.height,
         position,
         normal,
         visibility: vis,
+        visibility_rgb: rgb,
         scene: DumpScene {
             camera: desc.camera,
             lights: desc

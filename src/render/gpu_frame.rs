@@ -13,15 +13,18 @@ use crate::cpu::alpha::AlphaTables;
 use crate::gpu::alpha::mark_alpha_triangles;
 use crate::gpu::gpu_inputs;
 use crate::gpu::view_samples::read_view_samples;
+use crate::light::channel_visibility;
 use crate::oracle::{ViewSample, ViewSamples};
 use crate::scene::file::SceneDescription;
-use crate::shade::shade;
+use crate::shade::shade_coloured;
 use crate::stats::{FrameCounters, FrameMs, FrameStats, LightStats, ShadowStats, Stats};
 use crate::Result;
 
 /// One light's visibility and evaluated flags, per view sample.
 struct LightResult {
     visibility: Vec<f32>,
+    /// Per channel, for a light with an emission texture.
+    visibility_rgb: Option<Vec<[f32; 3]>>,
     evaluated: Vec<bool>,
     stats: LightStats,
 }
@@ -78,9 +81,17 @@ impl Engine {
         }
         let visibility: Vec<Vec<f32>> = lights.iter().map(|l| l.visibility.clone()).collect();
         let evaluated: Vec<Vec<bool>> = lights.iter().map(|l| l.evaluated.clone()).collect();
+        let visibility_rgb: Vec<_> = lights.iter().map(|l| l.visibility_rgb.clone()).collect();
         let t = Instant::now();
         let (normals, _) = self.shading.get(&desc.scene);
-        let image = shade(&desc.scene, normals, &view, &desc.lights, &visibility);
+        let image = shade_coloured(
+            &desc.scene,
+            normals,
+            &view,
+            &desc.lights,
+            &visibility,
+            &visibility_rgb,
+        );
         let shade_ms = t.elapsed().as_secs_f64() * 1e3;
         let stats = Stats::Gpu(FrameStats {
             device: self.ctx.info().name.clone(),
@@ -101,7 +112,15 @@ impl Engine {
             allocations: self.ctx.allocations() - before,
         });
         let light_samples: Vec<_> = desc.lights.iter().map(|l| l.light_samples()).collect();
-        let dump = make_dump(desc, &view, &light_samples, &visibility, &evaluated, &stats);
+        let dump = make_dump(
+            desc,
+            &view,
+            &light_samples,
+            &visibility,
+            &visibility_rgb,
+            &evaluated,
+            &stats,
+        );
         Ok(Frame {
             dump,
             image,
@@ -181,8 +200,27 @@ impl Engine {
                 "gpu hard shadows",
             ),
         };
+        // A textured light: each channel's visible share of the emission,
+        // a weighted count of the visible samples' bits.
+        let visibility_rgb = match (&out.soft, light.sample_colors()) {
+            (Some(so), Some(colors)) => Some(
+                (0..n)
+                    .map(|i| {
+                        let words = &so.visible[i * so.mask_words..(i + 1) * so.mask_words];
+                        match so.visibility[i] {
+                            Some(_) => {
+                                channel_visibility(&colors, |j| words[j / 32] >> (j % 32) & 1 == 1)
+                            }
+                            None => [0.0; 3],
+                        }
+                    })
+                    .collect(),
+            ),
+            _ => None,
+        };
         Ok(LightResult {
             visibility,
+            visibility_rgb,
             evaluated,
             stats: LightStats {
                 light: k,

@@ -6,10 +6,11 @@ use std::time::Instant;
 
 use super::dump_assembly::make_dump;
 use super::{Frame, FrameOptions};
+use crate::light::channel_visibility;
 use crate::light::LightSamples;
 use crate::oracle::{Oracle, ViewSamples};
 use crate::scene::file::SceneDescription;
-use crate::shade::{faces_light, shade};
+use crate::shade::{faces_light, shade_coloured};
 use crate::stats::{ReferenceCounters, ReferenceMs, ReferenceStats, Stats};
 use crate::Result;
 
@@ -42,20 +43,35 @@ pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Resul
 
     let mut light_samples = Vec::new();
     let mut visibility = Vec::new();
+    let mut visibility_rgb = Vec::new();
     let mut evaluated = Vec::new();
     let mut shadow_ms = Vec::new();
     for (k, light) in desc.lights.iter().enumerate() {
         let samples = light.light_samples();
         let t = Instant::now();
-        let (vis, ev) = oracle_light(&oracle, &view, &samples, k, options.progress);
+        let (vis, ev, rgb) = match light.sample_colors() {
+            Some(colors) => oracle_coloured_light(&oracle, &view, &samples, &colors),
+            None => {
+                let (vis, ev) = oracle_light(&oracle, &view, &samples, k, options.progress);
+                (vis, ev, None)
+            }
+        };
         shadow_ms.push(t.elapsed().as_secs_f64() * 1e3);
         evaluated.push(ev);
         visibility.push(vis);
+        visibility_rgb.push(rgb);
         light_samples.push(samples);
     }
     let t2 = Instant::now();
     let normals = crate::shade::ShadingNormals::new(&desc.scene);
-    let image = shade(&desc.scene, &normals, &view, &desc.lights, &visibility);
+    let image = shade_coloured(
+        &desc.scene,
+        &normals,
+        &view,
+        &desc.lights,
+        &visibility,
+        &visibility_rgb,
+    );
     let shade_ms = t2.elapsed().as_secs_f64() * 1e3;
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
     let shadow_rays = oracle.shadow_rays_cast();
@@ -86,7 +102,15 @@ pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Resul
             threads: rayon::current_num_threads(),
         },
     });
-    let dump = make_dump(desc, &view, &light_samples, &visibility, &evaluated, &stats);
+    let dump = make_dump(
+        desc,
+        &view,
+        &light_samples,
+        &visibility,
+        &visibility_rgb,
+        &evaluated,
+        &stats,
+    );
     Ok(Frame {
         dump,
         image,
@@ -119,6 +143,41 @@ fn oracle_light(
         .map(|s| s.is_some_and(|s| faces_light(s.position, s.normal, samples)))
         .collect();
     (vis, evaluated)
+}
+
+/// A light with an emission texture: the oracle's masks give both the
+/// visible fraction and each channel's visible share of the emission
+/// (`colors`: per light sample).
+#[allow(clippy::type_complexity)]
+fn oracle_coloured_light(
+    oracle: &Oracle,
+    view: &ViewSamples,
+    samples: &LightSamples,
+    colors: &[[f32; 3]],
+) -> (Vec<f32>, Vec<bool>, Option<Vec<[f32; 3]>>) {
+    let masks = oracle.visibility_masks(view, samples);
+    let n = samples.len();
+    let bit = |m: &[u64], j: usize| m[j / 64] >> (j % 64) & 1 == 1;
+    let vis = masks
+        .iter()
+        .map(|m| match m.is_empty() || n == 0 {
+            true => 0.0,
+            false => ((0..n).filter(|&j| bit(m, j)).count() as f64 / n as f64) as f32,
+        })
+        .collect();
+    let rgb = masks
+        .iter()
+        .map(|m| match m.is_empty() {
+            true => [0.0; 3],
+            false => channel_visibility(colors, |j| bit(m, j)),
+        })
+        .collect();
+    let evaluated = view
+        .samples
+        .iter()
+        .map(|s| s.is_some_and(|s| faces_light(s.position, s.normal, samples)))
+        .collect();
+    (vis, evaluated, Some(rgb))
 }
 
 fn progress_bar(len: u64, what: &str, show: bool) -> Option<indicatif::ProgressBar> {

@@ -386,6 +386,7 @@ fn point_light(position: DVec3) -> Light {
         seed: 7,
         color: [1.0; 3],
         intensity: 1.0,
+        emission: None,
     }
 }
 

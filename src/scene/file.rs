@@ -8,7 +8,9 @@ use glam::{DVec2, DVec3};
 use serde::Deserialize;
 
 use super::{builtin, gltf_load, Camera, Scene};
-use crate::light::{default_tangent, orthonormal_tangent, Distribution, Light, LightShape};
+use crate::light::{
+    default_tangent, orthonormal_tangent, Distribution, Light, LightEmission, LightShape,
+};
 use crate::{Error, Result};
 
 /// How soft shadows evaluate light samples against a triangle's planes.
@@ -216,6 +218,9 @@ struct FileLight {
     color: [f32; 3],
     #[serde(default = "default_intensity")]
     intensity: f32,
+    /// An emission texture (PNG or any format `image` reads), relative to
+    /// the scene file: rect and disk lights only.
+    texture: Option<String>,
 }
 
 fn default_seed() -> u64 {
@@ -232,7 +237,7 @@ fn default_intensity() -> f32 {
 pub const DEFAULT_AREA_SAMPLES: u32 = 128;
 
 impl FileLight {
-    fn resolve(&self) -> std::result::Result<Light, String> {
+    fn resolve(&self, base: &Path) -> std::result::Result<Light, String> {
         let v = |a: [f64; 3]| DVec3::from_array(a);
         let need = |name: &str, x: Option<[f64; 3]>| {
             x.map(v)
@@ -342,6 +347,18 @@ impl FileLight {
             seed: self.seed,
             color: self.color,
             intensity: self.intensity,
+            emission: match &self.texture {
+                Some(t) => {
+                    let path = base.join(t);
+                    let image = image::open(&path)
+                        .map_err(|e| format!("`texture` {}: {e}", path.display()))?;
+                    Some(LightEmission {
+                        path: path.display().to_string(),
+                        image: std::sync::Arc::new(image.to_rgb8()),
+                    })
+                }
+                None => None,
+            },
         };
         light.validate().map_err(|e| strip_prefix(&e))?;
         Ok(light)
@@ -397,7 +414,7 @@ pub fn parse_scene_file_with(
             .light
             .iter()
             .enumerate()
-            .map(|(i, l)| l.resolve().map_err(|m| err(format!("light {i}: {m}"))))
+            .map(|(i, l)| l.resolve(base).map_err(|m| err(format!("light {i}: {m}"))))
             .collect::<Result<_>>()?;
     }
     root.shadows.validate().map_err(|e| err(strip_prefix(&e)))?;
@@ -533,6 +550,7 @@ pub fn default_view(scene: &Scene) -> (Camera, Light) {
         seed: 7,
         color: [1.0; 3],
         intensity: 1.0,
+        emission: None,
     };
     (camera, light)
 }

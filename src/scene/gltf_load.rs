@@ -1056,6 +1056,7 @@ impl<'a> Loader<'a> {
             seed: 7,
             color,
             intensity: 1.0,
+            emission: None,
         })
     }
 

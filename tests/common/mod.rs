@@ -134,3 +134,49 @@ pub fn base64(bytes: &[u8]) -> String {
     }
     s
 }
+
+/// Pixels of a rendered frame whose visible light-sample count for light
+/// `k` differs from the oracle's (given the frame's own view samples and
+/// light samples) by more pairs than lie in the documented bands, and the
+/// pixels compared. `agree(pixel, oracle mask)` is called for every pixel
+/// whose count equals the oracle's, for further checks.
+#[allow(dead_code)]
+pub fn pixels_off_the_oracle(
+    desc: &alias_free_shadows::scene::file::SceneDescription,
+    frame: &alias_free_shadows::render::Frame,
+    k: usize,
+    mut agree: impl FnMut(usize, &[u64]),
+) -> (usize, usize) {
+    use alias_free_shadows::light::LightSamples;
+    use alias_free_shadows::oracle::{LightTarget, Oracle};
+    let eye = desc.camera.eye;
+    let oracle = Oracle::new(&desc.scene.triangles(), eye);
+    let ls = engine_light(&desc.lights[k], eye);
+    let LightSamples::Positions(points) = &ls else {
+        panic!("an area light")
+    };
+    let want = oracle.visibility_masks(&frame.view, &ls);
+    let n = points.len();
+    let (mut off, mut pixels) = (0, 0);
+    for (i, s) in frame.view.samples.iter().enumerate() {
+        let Some(s) = s else { continue };
+        pixels += 1;
+        let want_count = (0..n)
+            .filter(|&j| want[i][j / 64] >> (j % 64) & 1 == 1)
+            .count();
+        let got_count = (frame.dump.visibility[k][i][0] * n as f32).round() as usize;
+        let diff = got_count.abs_diff(want_count);
+        if diff == 0 {
+            agree(i, &want[i]);
+            continue;
+        }
+        let in_band = points
+            .iter()
+            .filter(|&&q| bands::in_any_band(&oracle, &desc.scene, eye, s, LightTarget::Point(q)))
+            .count();
+        if in_band < diff {
+            off += 1;
+        }
+    }
+    (off, pixels)
+}
