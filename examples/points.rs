@@ -45,6 +45,7 @@ fn main() -> alias_free_shadows::Result<()> {
         seed: 1,
         color: [1.0; 3],
         intensity: 1.0,
+        emission: None,
     };
     let centre = DVec3::new(0.3, 3.0, 0.0);
     let hard = engine.hard_shadows(

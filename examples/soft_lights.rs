@@ -29,6 +29,7 @@ fn main() -> alias_free_shadows::Result<()> {
         seed: 7,
         color,
         intensity: 0.6,
+        emission: None,
     };
     let (red, green, blue) = (above(-0.4, 0.1), above(0.4, 0.1), above(0.0, -0.4));
     desc.lights = vec![
