@@ -147,6 +147,7 @@ fn light(b: &mut Bytes) -> Light {
         seed: b.u32() as u64,
         color: [b.f32(), b.f32(), b.f32()],
         intensity: b.f32(),
+        emission: None,
     }
 }
 
