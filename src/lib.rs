@@ -48,6 +48,7 @@
 //! let mut engine = Engine::new(&ContextOptions::default())?;
 //! let light = |shape, samples| Light {
 //!     shape, samples, distribution: Distribution::Sobol, seed: 1, color: [1.0; 3], intensity: 1.0,
+//!     emission: None,
 //! };
 //! let centre = DVec3::new(0.3, 3.0, 0.0);
 //!
