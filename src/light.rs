@@ -149,6 +149,29 @@ pub fn channel_visibility(colors: &[[f32; 3]], visible: impl Fn(usize) -> bool) 
     })
 }
 
+/// [`channel_visibility`] of each view sample from its visible-sample mask
+/// (`words` u32 words per view sample, bit `j % 32` of word `j / 32` for
+/// light sample `j`, as the engine returns them); `[0; 3]` where
+/// `evaluated` is `None` (no view sample, or facing away from the light).
+pub fn mask_channel_visibility(
+    colors: &[[f32; 3]],
+    masks: &[u32],
+    words: usize,
+    evaluated: &[Option<f32>],
+) -> Vec<[f32; 3]> {
+    evaluated
+        .iter()
+        .enumerate()
+        .map(|(i, e)| match e {
+            Some(_) => {
+                let m = &masks[i * words..(i + 1) * words];
+                channel_visibility(colors, |j| m[j / 32] >> (j % 32) & 1 == 1)
+            }
+            None => [0.0; 3],
+        })
+        .collect()
+}
+
 /// sRGB-encoded 8-bit value to linear.
 fn srgb_to_linear(v: u8) -> f32 {
     let c = v as f32 / 255.0;

@@ -57,6 +57,10 @@ pub struct SoftShadowResult {
     pub visible: Vec<u32>,
     /// Words per view sample in `visible`.
     pub mask_words: usize,
+    /// For a light with an emission texture, per view sample: the visible
+    /// share of its red, green and blue emission
+    /// ([`crate::light::channel_visibility`]); `None` for other lights.
+    pub visibility_rgb: Option<Vec<[f32; 3]>>,
     /// Statistics (counters and milliseconds per pass).
     pub stats: ShadowStats,
 }
@@ -159,10 +163,19 @@ impl Engine {
             .run(&self.ctx, &vs, &ts, &lv, texels, Some(&sl))?;
         let stats = ShadowStats::new(&out, texels, lv.face_count(), Some(&sl));
         let so = out.soft.expect("a soft run returns soft output");
+        let visibility_rgb = light.sample_colors().map(|colors| {
+            crate::light::mask_channel_visibility(
+                &colors,
+                &so.visible,
+                so.mask_words,
+                &so.visibility,
+            )
+        });
         Ok(SoftShadowResult {
             visibility: so.visibility,
             visible: so.visible,
             mask_words: so.mask_words,
+            visibility_rgb,
             stats,
         })
     }

@@ -13,7 +13,7 @@ use crate::cpu::alpha::AlphaTables;
 use crate::gpu::alpha::mark_alpha_triangles;
 use crate::gpu::gpu_inputs;
 use crate::gpu::view_samples::read_view_samples;
-use crate::light::channel_visibility;
+use crate::light::mask_channel_visibility;
 use crate::oracle::{ViewSample, ViewSamples};
 use crate::scene::file::SceneDescription;
 use crate::shade::shade_coloured;
@@ -203,19 +203,12 @@ impl Engine {
         // A textured light: each channel's visible share of the emission,
         // a weighted count of the visible samples' bits.
         let visibility_rgb = match (&out.soft, light.sample_colors()) {
-            (Some(so), Some(colors)) => Some(
-                (0..n)
-                    .map(|i| {
-                        let words = &so.visible[i * so.mask_words..(i + 1) * so.mask_words];
-                        match so.visibility[i] {
-                            Some(_) => {
-                                channel_visibility(&colors, |j| words[j / 32] >> (j % 32) & 1 == 1)
-                            }
-                            None => [0.0; 3],
-                        }
-                    })
-                    .collect(),
-            ),
+            (Some(so), Some(colors)) => Some(mask_channel_visibility(
+                &colors,
+                &so.visible,
+                so.mask_words,
+                &so.visibility,
+            )),
             _ => None,
         };
         Ok(LightResult {
