@@ -2,7 +2,9 @@
 //! validation, and `SceneDescription::validate` on what it accepts. The
 //! `scene` key is resolved without file I/O: every `builtin:` scene is
 //! `builtin:plane_sphere` (generating e.g. a 2M-triangle torus knot per
-//! input would only slow the fuzzer down), anything else is an error.
+//! input would only slow the fuzzer down), anything else is an error. A
+//! light's `texture` is read relative to `fuzz/` (the seeds name
+//! `glass.png`, which is not there: the error path).
 #![no_main]
 
 use std::path::Path;
