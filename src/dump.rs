@@ -279,6 +279,15 @@ impl Dump {
         for (from, to) in written {
             std::fs::rename(&from, &to).map_err(|e| Error::io(&to, e))?;
         }
+        // A light without channels leaves no per-channel file of an
+        // earlier dump in the same folder behind ([`Dump::read`] would
+        // take it for this one's).
+        for (k, v) in self.visibility_rgb.iter().enumerate() {
+            let stale = dir.join(format!("visibility_{k}_rgb.exr"));
+            if v.is_none() && stale.exists() {
+                std::fs::remove_file(&stale).map_err(|e| Error::io(&stale, e))?;
+            }
+        }
         Ok(())
     }
 

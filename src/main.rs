@@ -245,7 +245,7 @@ impl RenderArgs {
 fn accumulate(
     args: &RenderArgs,
     desc: &SceneDescription,
-    mut render: impl FnMut(&SceneDescription) -> Result<Frame>,
+    mut render: impl FnMut(&SceneDescription, u32) -> Result<Frame>,
 ) -> Result<Frame> {
     let mut acc = Accumulator::new();
     let mut last = None;
@@ -254,7 +254,7 @@ fn accumulate(
         if !args.quiet {
             eprintln!("frame {}/{}", f + 1, args.frames);
         }
-        let frame = render(&acc.next_frame(desc))?;
+        let frame = render(&acc.next_frame(desc), f)?;
         if let Some(dir) = &args.dump {
             frame
                 .dump
@@ -288,6 +288,27 @@ fn check_output_paths(args: &RenderArgs) -> Result<()> {
         (Ok(a), Ok(b)) => a.components().eq(b.components()),
         _ => false,
     };
+    // --frames writes DIR/frame-NNN/: -o may not name or enter one.
+    if args.frames > 1 {
+        if let (Ok(o), Ok(d)) = (std::path::absolute(out), std::path::absolute(dump)) {
+            let o: Vec<_> = o.components().collect();
+            let d: Vec<_> = d.components().collect();
+            if o.len() > d.len()
+                && o[..d.len()] == d[..]
+                && o[d.len()]
+                    .as_os_str()
+                    .to_string_lossy()
+                    .starts_with("frame-")
+            {
+                return Err(Error::InvalidInput(format!(
+                    "-o {} is inside --dump {}'s per-frame folders (frame-NNN, written by \
+                     --frames): choose another name",
+                    out.display(),
+                    dump.display()
+                )));
+            }
+        }
+    }
     let name = out.file_name().map(|n| n.to_string_lossy().into_owned());
     match name {
         Some(n) if same_dir && n != "image.png" && Dump::is_file_name(&n) => {
@@ -417,7 +438,7 @@ fn run(cli: Cli) -> Result<()> {
                 progress: !args.quiet,
             };
             let frame = if args.frames > 1 {
-                accumulate(&args, &desc, |d| engine.render(d, options))?
+                accumulate(&args, &desc, |d, f| engine.render_jittered(d, f, options))?
             } else {
                 let mut frame = engine.render(&desc, options)?;
                 for _ in 1..args.repeat {
@@ -435,7 +456,7 @@ fn run(cli: Cli) -> Result<()> {
                 progress: !args.quiet,
             };
             let frame = if args.frames > 1 {
-                accumulate(&args, &desc, |d| render_reference(d, options))?
+                accumulate(&args, &desc, |d, _| render_reference(d, options))?
             } else {
                 render_reference(&desc, options)?
             };

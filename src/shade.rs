@@ -170,23 +170,22 @@ pub fn shade(
     lights: &[Light],
     visibility: &[Vec<f32>],
 ) -> image::RgbImage {
-    shade_coloured(scene, normals, view, lights, visibility, &[])
+    shade_coloured(
+        scene,
+        normals,
+        view,
+        lights,
+        &light_colors(lights),
+        visibility,
+        &[],
+    )
 }
 
-/// [`shade`] with, per light, its per-channel visibility where it has an
-/// emission texture (`visibility_rgb[k]`, [`crate::light::channel_visibility`]):
-/// such a light shines with its samples' mean colour, each channel scaled
-/// by that channel's visibility.
-pub fn shade_coloured(
-    scene: &Scene,
-    normals: &ShadingNormals,
-    view: &ViewSamples,
-    lights: &[Light],
-    visibility: &[Vec<f32>],
-    visibility_rgb: &[Option<Vec<[f32; 3]>>],
-) -> image::RgbImage {
-    // Per light: its colour (the samples' mean for a textured light).
-    let colors: Vec<[f32; 3]> = lights
+/// Per light, the colour it shines with: the mean of its samples' emission
+/// for a light with an emission texture ([`Light::sample_colors`]), else
+/// its `color`.
+pub fn light_colors(lights: &[Light]) -> Vec<[f32; 3]> {
+    lights
         .iter()
         .map(|l| match l.sample_colors() {
             Some(c) if !c.is_empty() => std::array::from_fn(|k| {
@@ -194,7 +193,22 @@ pub fn shade_coloured(
             }),
             _ => l.color,
         })
-        .collect();
+        .collect()
+}
+
+/// [`shade`] with each light's colour given (`colors[k]`, [`light_colors`])
+/// and, per light, its per-channel visibility where it has an emission
+/// texture (`visibility_rgb[k]`, [`crate::light::channel_visibility`]):
+/// each channel of such a light is scaled by that channel's visibility.
+pub fn shade_coloured(
+    scene: &Scene,
+    normals: &ShadingNormals,
+    view: &ViewSamples,
+    lights: &[Light],
+    colors: &[[f32; 3]],
+    visibility: &[Vec<f32>],
+    visibility_rgb: &[Option<Vec<[f32; 3]>>],
+) -> image::RgbImage {
     let (w, h) = (view.width, view.height);
     let surfaces = Surfaces::new(scene);
     let mut img = image::RgbImage::new(w, h);

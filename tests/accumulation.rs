@@ -118,9 +118,10 @@ fn the_accumulator_restarts_when_the_camera_a_light_or_the_scene_changes() {
     assert_eq!(step(&mut acc, &moved), 1, "camera moved");
     assert_eq!(step(&mut acc, &moved), 2);
     let mut light = moved.clone();
-    if let LightShape::Sphere { radius, .. } = &mut light.lights[0].shape {
-        *radius *= 1.5;
-    }
+    let LightShape::Sphere { radius, .. } = &mut light.lights[0].shape else {
+        panic!("the demo has a sphere light")
+    };
+    *radius *= 1.5;
     assert_eq!(step(&mut acc, &light), 1, "light changed");
     let mut scene = light.clone();
     scene.scene.meshes[1].positions[0].y += 0.01;

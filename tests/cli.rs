@@ -1023,4 +1023,18 @@ fn frames_accumulate_into_the_dump() {
         d,
         &["--frames and --repeat do not go together"],
     );
+    expect_error(
+        &[
+            "render",
+            "builtin:demo",
+            "--frames",
+            "2",
+            "--dump",
+            "other",
+            "-o",
+            "other/frame-001/image.png",
+        ],
+        d,
+        &["inside --dump other's per-frame folders"],
+    );
 }

@@ -163,3 +163,52 @@ fn texture_errors_are_named() {
     let e = scene("kind = \"disk\"\nposition = [0.0, 5.0, 0.0]\nradius = 0.5\nnormal = [0.0, -1.0, 0.0]\ntexture = \"nothing.png\"\n");
     assert!(e.contains("light 0") && e.contains("nothing.png"), "{e}");
 }
+
+/// Accumulated frames of a textured light: each channel is the visible
+/// emission of all the frames' samples over their total emission (each
+/// frame's samples emit a different total, so this is not the mean of the
+/// frames' shares).
+#[test]
+fn accumulated_channels_weigh_each_frame_by_its_emission() {
+    use alias_free_shadows::render::Accumulator;
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let desc = stained_glass(24, 32);
+    let mut acc = Accumulator::new();
+    let n = desc.camera.width as usize * desc.camera.height as usize;
+    let (mut seen, mut all) = (vec![[0.0f64; 3]; n], [0.0f64; 3]);
+    let mut totals = Vec::new();
+    for _ in 0..3 {
+        let d = acc.next_frame(&desc);
+        let colors = d.lights[0].sample_colors().unwrap();
+        let total: [f64; 3] =
+            std::array::from_fn(|k| colors.iter().map(|c| c[k] as f64).sum::<f64>());
+        let frame = engine.render(&d, FrameOptions::default()).unwrap();
+        let rgb = frame.dump.visibility_rgb[0].as_ref().unwrap();
+        for (s, p) in seen.iter_mut().zip(rgb) {
+            for k in 0..3 {
+                s[k] += p[k] as f64 * total[k];
+            }
+        }
+        for k in 0..3 {
+            all[k] += total[k];
+        }
+        totals.push(total);
+        acc.add(&frame);
+    }
+    engine.context().check_validation().unwrap();
+    assert_ne!(
+        totals[0], totals[1],
+        "the frames' samples emit different totals"
+    );
+    let got = &acc.visibility_rgb()[0].clone().unwrap();
+    for (i, (g, s)) in got.iter().zip(&seen).enumerate() {
+        for k in 0..3 {
+            let want = (s[k] / all[k]) as f32;
+            assert!(
+                (g[k] - want).abs() <= 1e-6,
+                "pixel {i} channel {k}: {} against {want}",
+                g[k]
+            );
+        }
+    }
+}

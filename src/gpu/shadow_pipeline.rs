@@ -145,6 +145,11 @@ impl ShadowPipeline {
         self.passes.plane_lut.set_cache_dir(dir);
     }
 
+    /// The folder of [`ShadowPipeline::set_table_cache`], taken out.
+    pub fn take_table_cache(&mut self) -> Option<std::path::PathBuf> {
+        self.passes.plane_lut.take_cache_dir()
+    }
+
     /// Limits the entries of look-up mode's unsure list per range of work
     /// units (tests: forces many ranges, and ranges that overflow and run
     /// again); `None` lifts it.

@@ -58,14 +58,17 @@ struct MeshKey {
     indices: Vec<[u32; 3]>,
     uvs: Option<Vec<glam::DVec2>>,
     material: Option<usize>,
+    closed: bool,
 }
 
+/// Textures are compared by content (the same image behind another `Arc`,
+/// as a scene loaded again has, is the same texture).
 #[derive(PartialEq)]
 struct MaterialKey {
     alpha_mode: crate::scene::AlphaMode,
     alpha_cutoff: f32,
     alpha_factor: f32,
-    texture: Option<usize>,
+    texture: Option<(std::sync::Arc<image::RgbaImage>, crate::scene::Sampler)>,
 }
 
 impl SceneKey {
@@ -79,6 +82,7 @@ impl SceneKey {
                     indices: m.indices.clone(),
                     uvs: m.uvs.clone(),
                     material: m.material,
+                    closed: m.closed,
                 })
                 .collect(),
             materials: scene.materials.iter().map(MaterialKey::new).collect(),
@@ -90,6 +94,7 @@ impl SceneKey {
             && self.materials.len() == scene.materials.len()
             && self.meshes.iter().zip(&scene.meshes).all(|(k, m)| {
                 k.material == m.material
+                    && k.closed == m.closed
                     && k.positions == m.positions
                     && k.indices == m.indices
                     && k.uvs == m.uvs
@@ -111,8 +116,7 @@ impl MaterialKey {
             texture: m
                 .base_color_texture
                 .as_ref()
-                .and_then(|t| t.image.as_ref())
-                .map(|i| std::sync::Arc::as_ptr(i) as usize),
+                .and_then(|t| Some((t.image.clone()?, t.sampler))),
         }
     }
 }
@@ -128,7 +132,8 @@ struct Inputs {
 /// Visibility accumulated over frames with fresh light samples: the mean,
 /// per light and pixel, of the frames' visible fractions (every frame of a
 /// light has the same number of samples, so this is the visible fraction of
-/// all the frames' samples together).
+/// all the frames' samples together); for a textured light, per channel,
+/// the visible emission over the emission of all the frames' samples.
 ///
 /// ```no_run
 /// # use alias_free_shadows::render::{Accumulator, Engine, FrameOptions};
@@ -146,8 +151,16 @@ pub struct Accumulator {
     inputs: Option<Inputs>,
     /// Per light, per pixel: the sum of the frames' visible fractions.
     sums: Vec<Vec<f64>>,
-    /// The same per channel, for lights with an emission texture.
+    /// Lights with an emission texture, per pixel and channel: the sum of
+    /// the frames' visible emission (visible share × the frame's total).
     sums_rgb: Vec<Option<Vec<[f64; 3]>>>,
+    /// Per light, per channel: the sum over the frames of all its samples'
+    /// emission (`None` for lights without a texture).
+    emitted: Vec<Option<[f64; 3]>>,
+    /// The next frame's emission per light, set by `next_frame`.
+    pending: Vec<Option<[f64; 3]>>,
+    /// Per light, the light samples over the frames.
+    sample_count: Vec<usize>,
     /// Per frame, per light: the light as recorded in that frame's dump.
     frames: Vec<Vec<DumpLight>>,
 }
@@ -195,8 +208,21 @@ impl Accumulator {
                 scene: SceneKey::new(&desc.scene),
             });
         }
+        let lights = frame_lights(&desc.lights, self.frame_count());
+        // Each frame's samples emit a different total, so the channels are
+        // accumulated as visible emission over total emission.
+        self.pending = lights
+            .iter()
+            .map(|l| {
+                l.sample_colors().map(|c| {
+                    c.iter().fold([0.0f64; 3], |a, s| {
+                        [a[0] + s[0] as f64, a[1] + s[1] as f64, a[2] + s[2] as f64]
+                    })
+                })
+            })
+            .collect();
         SceneDescription {
-            lights: frame_lights(&desc.lights, self.frame_count()),
+            lights,
             ..desc.clone()
         }
     }
@@ -215,22 +241,40 @@ impl Accumulator {
                 .iter()
                 .map(|v| v.as_ref().map(|v| vec![[0.0; 3]; v.len()]))
                 .collect();
+            self.emitted = vec![None; vis.len()];
+            self.sample_count = vec![0; vis.len()];
             self.frames.clear();
+        }
+        for (k, l) in frame.dump.scene.lights.iter().enumerate() {
+            self.sample_count[k] += l.samples.len();
+            if let Some(Some(e)) = self.pending.get(k) {
+                let t = self.emitted[k].get_or_insert([0.0; 3]);
+                for c in 0..3 {
+                    t[c] += e[c];
+                }
+            }
         }
         for (sum, v) in self.sums.iter_mut().zip(vis) {
             for (s, p) in sum.iter_mut().zip(v) {
                 *s += p[0] as f64;
             }
         }
-        for (sum, v) in self.sums_rgb.iter_mut().zip(&frame.dump.visibility_rgb) {
+        for (k, (sum, v)) in self
+            .sums_rgb
+            .iter_mut()
+            .zip(&frame.dump.visibility_rgb)
+            .enumerate()
+        {
+            let total = self.pending.get(k).copied().flatten().unwrap_or([0.0; 3]);
             if let (Some(sum), Some(v)) = (sum, v) {
                 for (s, p) in sum.iter_mut().zip(v) {
-                    for k in 0..3 {
-                        s[k] += p[k] as f64;
+                    for c in 0..3 {
+                        s[c] += p[c] as f64 * total[c];
                     }
                 }
             }
         }
+        self.pending.clear();
         self.frames.push(frame.dump.scene.lights.clone());
     }
 
@@ -243,15 +287,47 @@ impl Accumulator {
             .collect()
     }
 
-    /// Per light with an emission texture, per pixel: the mean visible
-    /// share of each channel over the frames (`None` for other lights).
+    /// Per light with an emission texture, per pixel: each channel's
+    /// visible share of the emission of all the frames' samples together
+    /// (`None` for other lights).
     pub fn visibility_rgb(&self) -> Vec<Option<Vec<[f32; 3]>>> {
-        let n = self.frames.len().max(1) as f64;
         self.sums_rgb
             .iter()
-            .map(|s| {
-                s.as_ref()
-                    .map(|s| s.iter().map(|v| v.map(|x| (x / n) as f32)).collect())
+            .enumerate()
+            .map(|(k, s)| {
+                let total = self.emitted.get(k).copied().flatten().unwrap_or([0.0; 3]);
+                s.as_ref().map(|s| {
+                    s.iter()
+                        .map(|v| {
+                            std::array::from_fn(|c| {
+                                if total[c] > 0.0 {
+                                    (v[c] / total[c]) as f32
+                                } else {
+                                    0.0
+                                }
+                            })
+                        })
+                        .collect()
+                })
+            })
+            .collect()
+    }
+
+    /// Per light: the colour it shines with over the frames (the mean of
+    /// all the frames' samples' emission for a textured light, else its
+    /// `color`).
+    fn light_colors(&self, lights: &[Light]) -> Vec<[f32; 3]> {
+        lights
+            .iter()
+            .enumerate()
+            .map(|(k, l)| {
+                match (
+                    self.emitted.get(k).copied().flatten(),
+                    self.sample_count.get(k),
+                ) {
+                    (Some(e), Some(&n)) if n > 0 => e.map(|x| (x / n as f64) as f32),
+                    _ => l.color,
+                }
             })
             .collect()
     }
@@ -269,6 +345,7 @@ impl Accumulator {
             normals,
             &last.view,
             &desc.lights,
+            &self.light_colors(&desc.lights),
             &visibility,
             &visibility_rgb,
         );
@@ -290,6 +367,7 @@ impl Accumulator {
             }
         }
         if self.frames.len() > 1 {
+            dump.scene.lights = self.frames[0].clone();
             dump.scene.frames = self.frames.clone();
         }
         Frame {

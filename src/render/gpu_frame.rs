@@ -89,6 +89,7 @@ impl Engine {
             normals,
             &view,
             &desc.lights,
+            &crate::shade::light_colors(&desc.lights),
             &visibility,
             &visibility_rgb,
         );
@@ -140,11 +141,31 @@ impl Engine {
         acc: &mut super::Accumulator,
         options: FrameOptions,
     ) -> Result<Frame> {
+        let index = acc.frame_count();
         let frame_desc = acc.next_frame(desc);
-        let frame = self.render(&frame_desc, options)?;
+        let frame = self.render_jittered(&frame_desc, index, options)?;
         acc.add(&frame);
         let (normals, _) = self.shading.get(&desc.scene);
         Ok(acc.frame(desc, normals, &frame))
+    }
+
+    /// [`Engine::render`] of frame `index` of an accumulation: frames after
+    /// the first have fresh light samples, so their look-up tables are not
+    /// kept on disk (they would be used once, and push out the tables of
+    /// the lights' own samples).
+    pub fn render_jittered(
+        &mut self,
+        desc: &SceneDescription,
+        index: u32,
+        options: FrameOptions,
+    ) -> Result<Frame> {
+        if index == 0 {
+            return self.render(desc, options);
+        }
+        let cache = self.shadows.take_table_cache();
+        let frame = self.render(desc, options);
+        self.shadows.set_table_cache(cache);
+        frame
     }
 
     /// Light `k`'s shadow passes over the frame's `n` view samples and `nt`

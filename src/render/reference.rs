@@ -69,6 +69,7 @@ pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Resul
         &normals,
         &view,
         &desc.lights,
+        &crate::shade::light_colors(&desc.lights),
         &visibility,
         &visibility_rgb,
     );

@@ -213,13 +213,13 @@ impl Buffer {
             .map(|p| p.as_ptr() as *mut u8)
     }
 
-    /// The whole buffer's mapped memory, if host-coherent and mapped (see
-    /// [`Buffer::write_mapped`] for who may write it when).
-    pub fn mapped_bytes(&self) -> Option<&[u8]> {
-        // SAFETY: the mapping covers the buffer's size and lives as long as
-        // the buffer (the borrow).
+    /// The whole buffer's mapped memory as a pointer and a length in
+    /// bytes, if host-coherent and mapped. Reading through it is up to the
+    /// caller: nothing (host or GPU) may write the buffer meanwhile, and
+    /// the buffer must outlive the reads.
+    pub(crate) fn mapped_range(&self) -> Option<(*const u8, usize)> {
         self.mapped_ptr()
-            .map(|p| unsafe { std::slice::from_raw_parts(p as *const u8, self.size as usize) })
+            .map(|p| (p as *const u8, self.size as usize))
     }
 
     fn check_range(&self, offset: u64, bytes: u64) -> Result<()> {
