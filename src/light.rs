@@ -773,6 +773,76 @@ fn sobol_directions(dim: usize) -> [u32; 32] {
 mod tests {
     use super::*;
 
+    /// A 2x2 texture (row 0: red, green; row 1: blue, white) on a rect
+    /// that is twice as long along its tangent as along its bitangent, and
+    /// on a disk: each sample takes the quarter it lies in, u along the
+    /// tangent, v along normal x tangent, row 0 at +v.
+    #[test]
+    fn emission_texture_maps_u_along_the_tangent_and_v_along_the_bitangent() {
+        let mut img = image::RgbImage::new(2, 2);
+        img.put_pixel(0, 0, image::Rgb([255, 0, 0]));
+        img.put_pixel(1, 0, image::Rgb([0, 255, 0]));
+        img.put_pixel(0, 1, image::Rgb([0, 0, 255]));
+        img.put_pixel(1, 1, image::Rgb([255, 255, 255]));
+        let emission = Some(LightEmission {
+            path: "test".into(),
+            image: std::sync::Arc::new(img),
+        });
+        let (normal, tangent) = (DVec3::NEG_Y, DVec3::X);
+        let bitangent = normal.cross(tangent); // -z
+        let centre = DVec3::new(1.0, 4.0, -2.0);
+        for shape in [
+            LightShape::Rect {
+                position: centre,
+                size: DVec2::new(2.0, 1.0),
+                normal,
+                tangent,
+            },
+            LightShape::Disk {
+                position: centre,
+                radius: 0.7,
+                normal,
+                tangent,
+            },
+        ] {
+            let l = Light {
+                emission: emission.clone(),
+                ..light(shape, 200, Distribution::Uniform)
+            };
+            l.validate().unwrap();
+            let colors = l.sample_colors().unwrap();
+            let LightSamples::Positions(points) = l.light_samples() else {
+                panic!()
+            };
+            let mut seen = [0; 4];
+            for (p, c) in points.iter().zip(&colors) {
+                let (u, v) = ((*p - centre).dot(tangent), (*p - centre).dot(bitangent));
+                let want = match (u > 0.0, v > 0.0) {
+                    (false, true) => [1.0, 0.0, 0.0],
+                    (true, true) => [0.0, 1.0, 0.0],
+                    (false, false) => [0.0, 0.0, 1.0],
+                    (true, false) => [1.0, 1.0, 1.0],
+                };
+                seen[(u > 0.0) as usize + 2 * (v > 0.0) as usize] += 1;
+                assert_eq!(*c, want, "{:?}: sample at u {u}, v {v}", l.shape);
+            }
+            assert!(seen.iter().all(|&n| n > 20), "{seen:?}");
+            // Not a rect or disk: refused.
+            let sphere = Light {
+                emission: emission.clone(),
+                ..light(
+                    LightShape::Sphere {
+                        position: centre,
+                        radius: 0.5,
+                    },
+                    8,
+                    Distribution::Uniform,
+                )
+            };
+            assert!(sphere.validate().is_err());
+        }
+    }
+
     fn light(shape: LightShape, samples: u32, distribution: Distribution) -> Light {
         Light {
             shape,
