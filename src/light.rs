@@ -159,8 +159,9 @@ pub fn mask_channel_visibility(
     words: usize,
     evaluated: &[Option<f32>],
 ) -> Vec<[f32; 3]> {
+    use rayon::prelude::*;
     evaluated
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(i, e)| match e {
             Some(_) => {
