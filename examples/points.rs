@@ -46,6 +46,7 @@ fn main() -> alias_free_shadows::Result<()> {
         color: [1.0; 3],
         intensity: 1.0,
         emission: None,
+        per_pixel_rotation: false,
     };
     let centre = DVec3::new(0.3, 3.0, 0.0);
     let hard = engine.hard_shadows(

@@ -30,6 +30,7 @@ fn main() -> alias_free_shadows::Result<()> {
         color,
         intensity: 0.6,
         emission: None,
+        per_pixel_rotation: false,
     };
     let (red, green, blue) = (above(-0.4, 0.1), above(0.4, 0.1), above(0.0, -0.4));
     desc.lights = vec![

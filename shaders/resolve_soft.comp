@@ -7,6 +7,8 @@
 #extension GL_GOOGLE_include_directive : require
 #define LIGHT_SAMPLES_BINDING 6
 #include "soft_common.glsl"
+#define PIXEL_ROTATION_BINDING 7
+#include "pixel_rotation.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 
 layout(set = 0, binding = 0) readonly buffer Samples { GpuViewSample samples[]; };
@@ -33,6 +35,12 @@ void main() {
     GpuViewSample s = samples[i];
     vec3 p = sample_position(s);
     vec3 nrm = sample_normal(s);
+    if (ROTATION != 0u) {
+        // The samples as this pixel sees them: its point and normal turned back.
+        mat3 m = unrotation(pixel_angle(i));
+        p = unrotate_point(p, m);
+        nrm = m * nrm;
+    }
     uint slot = sample_slot[i];
     uint total = 0u;
     for (uint w = 0u; w < words; w++) {

@@ -24,6 +24,8 @@
 #include "soft_common.glsl"
 #include "clusters_common.glsl"
 #include "alpha_common.glsl"
+#define PIXEL_ROTATION_BINDING 18
+#include "pixel_rotation.glsl"
 layout(local_size_x = 64) in;
 // 1: the alpha-tested casters' round (exact and look-up modes): a light
 // sample counts as blocked only where the caster is opaque at its
@@ -108,6 +110,7 @@ layout(set = 0, binding = 13) uniform usamplerBuffer boxes_tb;
 layout(set = 0, binding = 14) uniform usamplerBuffer alpha_records;
 layout(set = 0, binding = 15) uniform usamplerBuffer alpha_textures;
 layout(set = 0, binding = 16) uniform usamplerBuffer alpha_texels;
+layout(set = 0, binding = 17) uniform usamplerBuffer list_sample_index_tb; // per slot: its view sample
 #if SURE
 // Look-up mode runs the units in ranges, each flushing its unsure list
 // (soft_occlusion.rs): soft.w is the range's first unit.
@@ -341,6 +344,15 @@ void main() {
     uint chunk_dropped, chunk_penumbra;
     uint kept = keep_pairs(un, x, chunk_dropped, chunk_penumbra);
     uint begin = 0u, end = kept;
+    // Per-pixel rotation: x and each caster turned back by x's angle about
+    // the light's axis through its centre, which keeps the light's bounding
+    // sphere: every rule above and every influence region (tested on the
+    // unturned geometry against that sphere) hold for the turned pair too.
+    mat3 turn_back = mat3(1.0);
+    if (ROTATION != 0u && un.has_sample) {
+        turn_back = unrotation(pixel_angle(texelFetch(list_sample_index_tb, int(s)).x));
+        x = unrotate_point(x, turn_back);
+    }
     if (un.has_sample) {
         FOR_BLOCKS(INIT_BLOCK)
         vec3 ox = x - o;
@@ -367,6 +379,11 @@ void main() {
             vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 1u)).xyz);
             uvec4 c_record = texelFetch(triangles_tb, int(3u * ids.x + 2u));
             vec3 c = uintBitsToFloat(c_record.xyz);
+            if (ROTATION != 0u) {
+                a = unrotate_point(a, turn_back);
+                b = unrotate_point(b, turn_back);
+                c = unrotate_point(c, turn_back);
+            }
             vec3 n = cross(b - a, c - a);
             float sx = dot(n, x - a);
             bool closed = (t0.w & TRIANGLE_CLOSED) != 0u;

@@ -8,6 +8,8 @@
 #define LIGHT_SAMPLES_BINDING 4
 #include "soft_common.glsl"
 #include "alpha_common.glsl"
+#define PIXEL_ROTATION_BINDING 9
+#include "pixel_rotation.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 // 1: the alpha-tested casters' round: a light sample counts as blocked
 // where the caster is opaque at its segment's crossing.
@@ -20,6 +22,7 @@ layout(set = 0, binding = 3) buffer Masks { uint masks[]; };         // per list
 layout(set = 0, binding = 5) uniform usamplerBuffer alpha_records;
 layout(set = 0, binding = 6) uniform usamplerBuffer alpha_textures;
 layout(set = 0, binding = 7) uniform usamplerBuffer alpha_texels;
+layout(set = 0, binding = 8) uniform usamplerBuffer list_sample_index_tb; // per slot: its view sample
 
 void main() {
     uint e = linear_invocation();
@@ -34,6 +37,14 @@ void main() {
     vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * tri + 1u)).xyz);
     uvec4 c_record = texelFetch(triangles_tb, int(3u * tri + 2u));
     vec3 c = uintBitsToFloat(c_record.xyz);
+    if (ROTATION != 0u) {
+        // As soft_occlusion.comp turns them: back by the pixel's angle.
+        mat3 m = unrotation(pixel_angle(texelFetch(list_sample_index_tb, int(s)).x));
+        x = unrotate_point(x, m);
+        a = unrotate_point(a, m);
+        b = unrotate_point(b, m);
+        c = unrotate_point(c, m);
+    }
     // The same planes as soft_occlusion.comp computes.
     vec3 n = cross(b - a, c - a);
     float sigma = dot(n, x - a) > 0.0 ? 1.0 : -1.0;

@@ -12,6 +12,8 @@ layout(set = 0, binding = 1) readonly buffer Offsets { uint offsets[]; };
 layout(set = 0, binding = 2) readonly buffer SampleTexel { uint sample_texel[]; };
 layout(set = 0, binding = 3) buffer SampleLocal { uint sample_slot[]; }; // local index in, slot out
 layout(set = 0, binding = 4) writeonly buffer ListSamples { vec4 list_samples[]; };
+// Per slot: the view sample's index (its pixel: per-pixel rotation).
+layout(set = 0, binding = 5) writeonly buffer ListSampleIndex { uint list_sample_index[]; };
 
 void main() {
     uint i = linear_invocation();
@@ -25,5 +27,6 @@ void main() {
     uint slot = offsets[texel] + sample_slot[i];
     GpuViewSample s = samples[i];
     list_samples[slot] = vec4(sample_position(s), uintBitsToFloat(sample_triangle(s)));
+    list_sample_index[slot] = i;
     sample_slot[i] = slot;
 }

@@ -349,6 +349,7 @@ pub fn bench_light(desc: &SceneDescription, samples: u32) -> Result<Light> {
         color: [1.0; 3],
         intensity: 1.0,
         emission: None,
+        per_pixel_rotation: false,
     })
 }
 

@@ -61,13 +61,24 @@ pub struct DumpLight {
     pub intensity: f32,
     /// World-space sample positions in order (empty for a directional light).
     pub samples: Vec<[f64; 3]>,
-    /// Whether the sample pattern was rotated per pixel.
+    /// Whether the sample pattern was rotated per pixel
+    /// ([`Light::per_pixel_rotation`]): pixel `i` saw each sample turned
+    /// by angle [`crate::light::pixel_rotation_angle`]`(i, rotation_seed)`
+    /// about `rotation_axis` through `position`.
     pub per_pixel_rotation: bool,
+    /// The rotation's unit axis, world space (with `per_pixel_rotation`).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub rotation_axis: Option<[f64; 3]>,
+    /// The rotation's seed (with `per_pixel_rotation`).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub rotation_seed: Option<u32>,
 }
 
 impl DumpLight {
-    /// Records `light` and the samples that were used for it.
-    pub fn new(light: &Light, samples: &LightSamples) -> Self {
+    /// Records `light` and the samples that were used for it, seen from a
+    /// camera at `eye` (a sphere's rotation axis points at it).
+    pub fn new(light: &Light, samples: &LightSamples, eye: DVec3) -> Self {
+        let rotation = light.pixel_rotation(eye);
         let a = |v: DVec3| Some(v.to_array());
         let mut d = DumpLight {
             kind: String::new(),
@@ -86,7 +97,9 @@ impl DumpLight {
                 LightSamples::Positions(p) => p.iter().map(|p| p.to_array()).collect(),
                 LightSamples::Direction(_) => Vec::new(),
             },
-            per_pixel_rotation: false,
+            per_pixel_rotation: rotation.is_some(),
+            rotation_axis: rotation.map(|r| r.axis.to_array()),
+            rotation_seed: rotation.map(|r| r.seed),
         };
         match &light.shape {
             LightShape::Point { position } => {

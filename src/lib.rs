@@ -49,6 +49,7 @@
 //! let light = |shape, samples| Light {
 //!     shape, samples, distribution: Distribution::Sobol, seed: 1, color: [1.0; 3], intensity: 1.0,
 //!     emission: None,
+//!     per_pixel_rotation: false,
 //! };
 //! let centre = DVec3::new(0.3, 3.0, 0.0);
 //!

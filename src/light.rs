@@ -110,6 +110,13 @@ pub struct Light {
     /// `color`), and the light's visibility is then also given per channel
     /// ([`Light::sample_colors`], [`channel_visibility`]).
     pub emission: Option<LightEmission>,
+    /// Per-pixel rotation (paper §4.2): each view sample sees the light's
+    /// samples turned by its own angle about the light's symmetry axis
+    /// ([`Light::pixel_rotation`]), which turns the banding of one sample
+    /// pattern into noise. Sphere, disk and ellipsoid lights whose first
+    /// two semi-axes are equal, without an emission texture; off by
+    /// default (conformance compares one pattern).
+    pub per_pixel_rotation: bool,
 }
 
 /// A light's emission texture.
@@ -193,6 +200,100 @@ pub enum LightSamples {
     Direction(DVec3),
 }
 
+/// How a light's samples turn per pixel ([`Light::pixel_rotation`]):
+/// view sample `i` sees sample `l` at `centre + R(i) (l - centre)`, `R(i)`
+/// the turn by [`pixel_rotation_angle`]`(i, seed)` about `axis`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelRotation {
+    /// The light's centre, world space.
+    pub centre: DVec3,
+    /// Unit axis of the turn.
+    pub axis: DVec3,
+    /// Seed of the pixels' angles (from the light's seed).
+    pub seed: u32,
+}
+
+/// The number of distinct per-pixel angles ([`pixel_rotation_angle`]).
+pub const PIXEL_ROTATION_ANGLES: usize = 256;
+
+/// Angle `k` of the per-pixel rotations as (cos, sin) in `f32`:
+/// 2π (k + 1/2) / [`PIXEL_ROTATION_ANGLES`]. The GPU reads this table, so
+/// GPU, CPU twins and oracle turn by the same values.
+pub fn pixel_rotation_table() -> Vec<[f32; 2]> {
+    (0..PIXEL_ROTATION_ANGLES)
+        .map(|k| {
+            let a = std::f64::consts::TAU * (k as f64 + 0.5) / PIXEL_ROTATION_ANGLES as f64;
+            [a.cos() as f32, a.sin() as f32]
+        })
+        .collect()
+}
+
+/// A 32-bit integer hash (Wellons' lowbias32); `pixel_rotation.glsl` has
+/// its twin.
+pub fn hash32(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^ (x >> 16)
+}
+
+/// The index into [`pixel_rotation_table`] of view sample `pixel` (its
+/// index in the view samples: the pixel `x + y * width` of a frame).
+pub fn pixel_rotation_angle(pixel: u32, seed: u32) -> usize {
+    (hash32(pixel ^ hash32(seed)) >> 24) as usize
+}
+
+impl PixelRotation {
+    /// `p` turned as view sample `pixel` sees it (f64; the oracle's).
+    pub fn turn(&self, p: DVec3, pixel: u32, table: &[[f32; 2]]) -> DVec3 {
+        let [c, s] = table[pixel_rotation_angle(pixel, self.seed)];
+        let (c, s) = (c as f64, s as f64);
+        let r = p - self.centre;
+        let w = self.axis;
+        self.centre + r * c + w.cross(r) * s + w * (w.dot(r) * (1.0 - c))
+    }
+}
+
+/// The turn back by (cos, sin) = `cs` about unit `axis`, as the matrix
+/// `pixel_rotation.glsl` builds (`unrotation`): the inverse of a pixel's
+/// sample rotation, in the same `f32` arithmetic.
+pub fn unrotation_f32(axis: glam::Vec3, cs: [f32; 2]) -> glam::Mat3 {
+    let (c, s) = (cs[0], -cs[1]);
+    let t = 1.0 - c;
+    let w = axis;
+    glam::Mat3::from_cols(
+        glam::Vec3::new(
+            t * w.x * w.x + c,
+            t * w.x * w.y + s * w.z,
+            t * w.x * w.z - s * w.y,
+        ),
+        glam::Vec3::new(
+            t * w.x * w.y - s * w.z,
+            t * w.y * w.y + c,
+            t * w.y * w.z + s * w.x,
+        ),
+        glam::Vec3::new(
+            t * w.x * w.z + s * w.y,
+            t * w.y * w.z - s * w.x,
+            t * w.z * w.z + c,
+        ),
+    )
+}
+
+/// Point `v` turned back by `cs` about unit `axis` through `centre`
+/// ([`unrotation_f32`], then `centre + m (v - centre)`, as
+/// `unrotate_point` does): turning the geometry back is the same as
+/// turning the light samples forward. With `centre` zero, a direction.
+pub fn unrotate_f32(
+    v: glam::Vec3,
+    centre: glam::Vec3,
+    axis: glam::Vec3,
+    cs: [f32; 2],
+) -> glam::Vec3 {
+    centre + unrotation_f32(axis, cs) * (v - centre)
+}
+
 impl LightSamples {
     /// Number of samples (1 for a direction).
     pub fn len(&self) -> usize {
@@ -250,6 +351,40 @@ impl Light {
             LightShape::Explicit { positions } => (!positions.is_empty())
                 .then(|| positions.iter().sum::<DVec3>() / positions.len() as f64),
         }
+    }
+
+    /// The per-pixel rotation of a light with `per_pixel_rotation` seen
+    /// from a camera at `eye`: the axis through its centre (a disk's and
+    /// an ellipsoid's normal; for a sphere, which any axis leaves
+    /// unchanged, the line to the camera) and the seed of the pixels'
+    /// angles ([`pixel_rotation_angle`]). `None` without rotation.
+    pub fn pixel_rotation(&self, eye: DVec3) -> Option<PixelRotation> {
+        if !self.per_pixel_rotation {
+            return None;
+        }
+        let (centre, axis) = match &self.shape {
+            LightShape::Sphere { position, .. } => {
+                let to_eye = eye - *position;
+                let axis = if to_eye.length_squared() > 0.0 {
+                    to_eye.normalize()
+                } else {
+                    DVec3::Z
+                };
+                (*position, axis)
+            }
+            LightShape::Disk {
+                position, normal, ..
+            }
+            | LightShape::Ellipsoid {
+                position, normal, ..
+            } => (*position, *normal),
+            _ => return None,
+        };
+        Some(PixelRotation {
+            centre,
+            axis,
+            seed: (self.seed ^ (self.seed >> 32)) as u32,
+        })
     }
 
     /// Per light sample (in [`Light::light_samples`] order), the linear RGB
@@ -399,6 +534,28 @@ impl Light {
                 "`intensity` must be finite and >= 0, got {}",
                 self.intensity
             ));
+        }
+        if self.per_pixel_rotation {
+            let symmetric = match &self.shape {
+                LightShape::Sphere { .. } | LightShape::Disk { .. } => true,
+                LightShape::Ellipsoid { semi_axes, .. } => semi_axes.x == semi_axes.y,
+                _ => false,
+            };
+            if !symmetric {
+                return bad(
+                    "`per_pixel_rotation` needs a light that a turn about its axis leaves \
+                     unchanged: a sphere, a disk, or an ellipsoid whose first two semi-axes \
+                     are equal"
+                        .into(),
+                );
+            }
+            if self.emission.is_some() {
+                return bad(
+                    "`per_pixel_rotation` and `texture` do not go together (a turned sample \
+                     would move across the texture)"
+                        .into(),
+                );
+            }
         }
         if let Some(e) = &self.emission {
             if !matches!(
@@ -844,6 +1001,71 @@ mod tests {
         }
     }
 
+    #[test]
+    fn pixel_rotation_turns_about_the_axis_and_unrotate_undoes_it() {
+        let table = pixel_rotation_table();
+        assert_eq!(table.len(), PIXEL_ROTATION_ANGLES);
+        for [c, s] in &table {
+            assert!((c * c + s * s - 1.0).abs() < 1e-6);
+        }
+        let disk = Light {
+            per_pixel_rotation: true,
+            ..light(
+                LightShape::Disk {
+                    position: DVec3::new(1.0, 5.0, -2.0),
+                    radius: 0.8,
+                    normal: DVec3::NEG_Y,
+                    tangent: DVec3::X,
+                },
+                64,
+                Distribution::Poisson,
+            )
+        };
+        disk.validate().unwrap();
+        let rot = disk.pixel_rotation(DVec3::ZERO).unwrap();
+        assert_eq!(rot.axis, DVec3::NEG_Y);
+        let LightSamples::Positions(points) = disk.light_samples() else {
+            panic!()
+        };
+        // Pixels spread over the angles; a turned sample stays on the disk
+        // at its distance from the centre; unrotate_f32 turns it back.
+        let mut seen = vec![false; PIXEL_ROTATION_ANGLES];
+        for pixel in 0..4096u32 {
+            seen[pixel_rotation_angle(pixel, rot.seed)] = true;
+            let p = points[pixel as usize % points.len()];
+            let q = rot.turn(p, pixel, &table);
+            assert!((q.y - p.y).abs() < 1e-12);
+            // (cos, sin) are f32: a unit length to about 6e-8.
+            assert!((q.distance(rot.centre) - p.distance(rot.centre)).abs() < 1e-7);
+            let cs = table[pixel_rotation_angle(pixel, rot.seed)];
+            let back = unrotate_f32(q.as_vec3(), rot.centre.as_vec3(), rot.axis.as_vec3(), cs);
+            assert!(back.as_dvec3().distance(p) < 1e-5, "{back} {p}");
+        }
+        assert!(seen.iter().all(|&s| s), "every angle is used");
+        // Another seed, other angles.
+        let other = (0..64)
+            .filter(|&i| pixel_rotation_angle(i, rot.seed) != pixel_rotation_angle(i, rot.seed ^ 1))
+            .count();
+        assert!(other > 56, "{other}");
+        // A sphere turns about the line to the camera.
+        let sphere = Light {
+            per_pixel_rotation: true,
+            ..light(
+                LightShape::Sphere {
+                    position: DVec3::new(0.0, 4.0, 0.0),
+                    radius: 0.5,
+                },
+                16,
+                Distribution::Uniform,
+            )
+        };
+        let axis = sphere
+            .pixel_rotation(DVec3::new(0.0, 4.0, 3.0))
+            .unwrap()
+            .axis;
+        assert!(axis.distance(DVec3::Z) < 1e-12);
+    }
+
     fn light(shape: LightShape, samples: u32, distribution: Distribution) -> Light {
         Light {
             shape,
@@ -853,6 +1075,7 @@ mod tests {
             color: [1.0; 3],
             intensity: 1.0,
             emission: None,
+            per_pixel_rotation: false,
         }
     }
 

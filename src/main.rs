@@ -127,7 +127,9 @@ struct RenderArgs {
     samples: Option<u32>,
     /// Replace the scene's lights with one light: KIND[:KEY=VALUE,...], KIND
     /// point, directional, sphere, disk or rect; keys radius (default a
-    /// tenth of the light's distance to the scene) and samples (default 128).
+    /// tenth of the light's distance to the scene), samples (default 128) and
+    /// rotate (true: each pixel sees the sphere's or disk's samples turned by
+    /// its own angle, which turns banding into noise; default false).
     /// It stands where the scene's first light is and faces the scene, e.g.
     /// `--light sphere` or `--light disk:radius=0.2,samples=256` for soft
     /// shadows from a glTF without a scene file.

@@ -477,6 +477,7 @@ fn random_case(seed: u64, kind: u32) -> SceneDescription {
         color: [1.0; 3],
         intensity: 1.0,
         emission: None,
+        per_pixel_rotation: false,
     };
     SceneDescription {
         name: format!("random alpha case {seed} (light kind {kind})"),

@@ -57,6 +57,7 @@ fn light(shape: LightShape, samples: u32) -> Light {
         color: [1.0; 3],
         intensity: 1.0,
         emission: None,
+        per_pixel_rotation: false,
     }
 }
 

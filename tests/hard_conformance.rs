@@ -43,6 +43,7 @@ fn point(position: DVec3) -> Light {
         color: [1.0; 3],
         intensity: 1.0,
         emission: None,
+        per_pixel_rotation: false,
     }
 }
 

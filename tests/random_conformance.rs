@@ -405,6 +405,7 @@ fn make_light(l: &RandomLight, centre: DVec3, scale: f64, snap: impl Fn(DVec3) -
         color: [1.0; 3],
         intensity: 1.0,
         emission: None,
+        per_pixel_rotation: false,
     }
 }
 

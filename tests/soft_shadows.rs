@@ -8,6 +8,7 @@
 use alias_free_shadows::cpu::alpha::AlphaTables;
 use alias_free_shadows::cpu::plane_lut as soft;
 use alias_free_shadows::cpu::soft_occlusion::{blocked_bits, PlaneBits};
+use alias_free_shadows::light::{pixel_rotation_angle, unrotate_f32, Light};
 use alias_free_shadows::oracle::Oracle;
 use alias_free_shadows::render::{self, Engine};
 use alias_free_shadows::scene::file::{self, ShadowSettings, SoftMode};
@@ -80,14 +81,26 @@ fn plane_lut_matches_the_twin() {
 #[test]
 fn visible_samples_match_the_brute_force_twin() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
-    for (name, samples) in [("demo", 128), ("fence", 200), ("hairball", 64)] {
+    // The last two: the per-pixel rotation, whose twin is the same test on
+    // each pixel's geometry turned back (light::unrotate_f32).
+    for (name, samples, rotate) in [
+        ("demo", 128, false),
+        ("fence", 200, false),
+        ("hairball", 64, false),
+        ("demo", 128, true),
+        ("fence", 64, true),
+    ] {
         let mut desc = file::load(&format!("builtin:{name}")).unwrap();
         desc.camera.width = 32;
         desc.camera.height = 32;
         let eye = desc.camera.eye;
         let oracle = Oracle::new(&desc.scene.triangles(), eye);
         let view = engine_view_samples(&oracle, &desc);
-        let light = sphere_light(&desc, samples);
+        let light = Light {
+            per_pixel_rotation: rotate,
+            ..sphere_light(&desc, samples)
+        };
+        let table = alias_free_shadows::light::pixel_rotation_table();
         let tris = render::user_gpu_triangles(&desc.scene, eye, &view.samples);
         let alpha = AlphaTables::new(&desc.scene);
         for mode in [SoftMode::Approx, SoftMode::Lut, SoftMode::Exact] {
@@ -113,6 +126,15 @@ fn visible_samples_match_the_brute_force_twin() {
                 let Some(s) = s else { continue };
                 let p = (s.position - eye).as_vec3();
                 let nrm = s.normal.as_vec3().normalize_or_zero();
+                // The pixel's turn, undone on its geometry.
+                let turn = |v: glam::Vec3, centre: glam::Vec3| match &sl.rotation {
+                    Some(rot) => {
+                        let cs = table[pixel_rotation_angle(i as u32, rot.seed)];
+                        unrotate_f32(v, centre, rot.axis, cs)
+                    }
+                    None => v,
+                };
+                let (p, nrm) = (turn(p, c), turn(nrm, glam::Vec3::ZERO));
                 let got = &r.visible[i * r.mask_words..(i + 1) * r.mask_words];
                 // Blocked bits that the GPU must find (from triangles that
                 // hide some light sample exactly: every influence region
@@ -127,6 +149,7 @@ fn visible_samples_match_the_brute_force_twin() {
                         if t as u32 == s.triangle {
                             continue;
                         }
+                        let v = &v.map(|q| turn(q, c));
                         // An alpha-tested caster blocks where the segment
                         // crosses it opaque; the GPU tests it per light
                         // sample in every mode.
@@ -171,7 +194,7 @@ fn visible_samples_match_the_brute_force_twin() {
             }
             let share = differ as f64 / pairs.max(1) as f64;
             eprintln!(
-                "builtin:{name} {mode:?} {samples} samples: {differ} of {pairs} (pixel, light sample) pairs differ from the twin ({share:.2e})"
+                "builtin:{name} {mode:?} {samples} samples (rotated: {rotate}): {differ} of {pairs} (pixel, light sample) pairs differ from the twin ({share:.2e})"
             );
             assert!(pairs > 0);
             assert!(

@@ -148,6 +148,7 @@ fn light(b: &mut Bytes) -> Light {
         color: [b.f32(), b.f32(), b.f32()],
         intensity: b.f32(),
         emission: None,
+        per_pixel_rotation: false,
     }
 }
 

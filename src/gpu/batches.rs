@@ -12,7 +12,7 @@
 use crate::cpu::light_view::LightView;
 use crate::gpu::light_frame::LightInputs;
 use crate::gpu::light_passes::{LightPasses, Ran, ShadowOutput};
-use crate::gpu::soft_light::SoftLight;
+use crate::gpu::soft_light::{SampleRotation, SoftLight};
 use crate::vulkan::{Barrier, BufferSlice, GpuContext, GrowBuffer};
 use crate::{Error, Result};
 
@@ -76,6 +76,20 @@ impl Batches {
                 samples,
                 n: len as u32,
                 ..*inputs
+            };
+            // The batch's view sample 0 is pixel `start` (per-pixel rotation).
+            let shifted = of.soft.and_then(|sl| {
+                sl.rotation.map(|r| SoftLight {
+                    rotation: Some(SampleRotation {
+                        first_pixel: r.first_pixel + start as u32,
+                        ..r
+                    }),
+                    ..sl.clone()
+                })
+            });
+            let of = RunOf {
+                soft: shifted.as_ref().or(of.soft),
+                ..of
             };
             let o = triangle_batches(passes, &mut self.triangles_copy, limit, ctx, &part, of)?;
             out = Some(match out {

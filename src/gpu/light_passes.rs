@@ -195,7 +195,10 @@ impl LightPasses {
         r.set_round(CasterRound::All);
         match soft {
             None => resolve.record_hard(r, texel_lists, &occlusion.shadowed)?,
-            Some(_) => resolve.record_soft(r, texel_lists, soft_occlusion)?,
+            Some(sl) => {
+                let rotated = sl.rotation.is_some();
+                resolve.record_soft(r, texel_lists, soft_occlusion, rotated)?
+            }
         }
         r.submit()?;
         ctx.check_validation()?;
@@ -222,7 +225,8 @@ impl LightPasses {
         self.clusters.prepare(ctx, frame)?;
         self.casters.prepare(ctx, frame)?;
         self.tile_bin.prepare(ctx, frame)?;
-        self.resolve.prepare(ctx, frame)?;
+        let rotated = soft.is_some_and(|sl| sl.rotation.is_some());
+        self.resolve.prepare(ctx, frame, rotated)?;
         if let Some(sl) = soft {
             self.soft_occlusion.prepare(ctx, frame, sl, alpha_casters)?;
         }

@@ -21,6 +21,8 @@ use crate::Result;
 pub struct ResolvePass {
     hard: ComputePipeline,
     soft: ComputePipeline,
+    /// The soft resolve with the per-pixel rotation, made when first needed.
+    soft_rotated: Option<ComputePipeline>,
     /// Per view sample. Hard: bit 0 lit, bit 1 evaluated. Soft: visibility
     /// as `f32` bits, −1 where not evaluated.
     pub result: GrowBuffer,
@@ -43,18 +45,19 @@ impl ResolvePass {
         };
         Ok(ResolvePass {
             hard: make("resolve_hard", shaders::RESOLVE_HARD, &[sb; 4])?,
-            soft: make(
-                "resolve_soft",
-                shaders::RESOLVE_SOFT,
-                &[sb, sb, sb, sb, sb, sb, DescriptorKind::UniformBuffer],
-            )?,
+            soft: soft_pipeline(ctx, false)?,
+            soft_rotated: None,
             result: GrowBuffer::storage("result"),
             visible: GrowBuffer::storage("visible_masks"),
         })
     }
 
-    /// Sizes the buffers.
-    pub fn prepare(&mut self, ctx: &GpuContext, frame: &LightFrame) -> Result<()> {
+    /// Sizes the buffers; with `rotated`, makes the soft resolve with the
+    /// per-pixel rotation (when first needed).
+    pub fn prepare(&mut self, ctx: &GpuContext, frame: &LightFrame, rotated: bool) -> Result<()> {
+        if rotated && self.soft_rotated.is_none() {
+            self.soft_rotated = Some(soft_pipeline(ctx, true)?);
+        }
         let n = frame.n as u64;
         self.result.get(ctx, 4 * n)?;
         if frame.mask_words > 0 {
@@ -85,15 +88,22 @@ impl ResolvePass {
         })
     }
 
-    /// Records the soft resolve of the blocked masks; ends with a barrier
-    /// to the host.
+    /// Records the soft resolve of the blocked masks (`rotated`: with the
+    /// light's per-pixel rotation); ends with a barrier to the host.
     pub fn record_soft(
         &self,
         r: &mut Recording,
         lists: &TexelListPass,
         occlusion: &SoftOcclusionPass,
+        rotated: bool,
     ) -> Result<()> {
         let (samples, n) = (r.inputs.samples, r.frame.n);
+        let pipeline = match rotated {
+            true => self.soft_rotated.as_ref().ok_or_else(|| {
+                crate::Error::InvalidInput("the rotated resolve was not prepared".into())
+            })?,
+            false => &self.soft,
+        };
         r.pass("soft_resolve", |rec, pc| {
             let bindings = [
                 storage(samples),
@@ -103,10 +113,28 @@ impl ResolvePass {
                 storage(&self.visible),
                 storage(&self.result),
                 Binding::uniform(&occlusion.light_samples),
+                Binding::uniform(&occlusion.pixel_rotation),
             ];
-            rec.dispatch(&self.soft, &bindings, pc, groups(n))?;
+            rec.dispatch(pipeline, &bindings, pc, groups(n))?;
             rec.barrier(Barrier::ComputeToHost);
             Ok(())
         })
     }
+}
+
+/// The soft resolve; `rotated`: with the per-pixel rotation
+/// (specialization constant 6).
+fn soft_pipeline(ctx: &GpuContext, rotated: bool) -> Result<ComputePipeline> {
+    let (sb, ub) = (DescriptorKind::StorageBuffer, DescriptorKind::UniformBuffer);
+    ctx.create_compute_pipeline(&ComputePipelineDesc {
+        name: if rotated {
+            "resolve_soft_rotated"
+        } else {
+            "resolve_soft"
+        },
+        spirv: shaders::RESOLVE_SOFT,
+        bindings: &[sb, sb, sb, sb, sb, sb, ub, ub],
+        push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
+        specialization: &[(6, rotated as u32)],
+    })
 }

@@ -18,11 +18,35 @@ pub struct SoftLight {
     /// Corners of the polygon that bounds the light's silhouette in the
     /// influence regions (6: a hexagon).
     pub polygon_degree: u32,
+    /// Per-pixel rotation of the samples (paper §4.2), camera-relative;
+    /// `None`: every view sample sees `samples` as they are.
+    pub rotation: Option<SampleRotation>,
+}
+
+/// A light's per-pixel rotation as the passes take it
+/// ([`crate::light::PixelRotation`], camera-relative): view sample `i`
+/// sees each sample turned about `axis` through `centre` by angle
+/// [`crate::light::pixel_rotation_angle`]`(i, seed)`. The passes turn the
+/// view sample and the casters back instead (`pixel_rotation.glsl`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SampleRotation {
+    /// The light's centre, camera-relative.
+    pub centre: glam::Vec3,
+    /// Unit axis.
+    pub axis: glam::Vec3,
+    /// Seed of the pixels' angles.
+    pub seed: u32,
+    /// The index of the run's first view sample among all of the frame's
+    /// (a batch of view samples starts later): view sample `i` of the run
+    /// is pixel `first_pixel + i`.
+    pub first_pixel: u32,
 }
 
 impl SoftLight {
     /// The centre and bounding radius of the samples (their bounding box's
-    /// centre and the largest distance to it, rounded up).
+    /// centre, or with a rotation the light's centre, which every turn
+    /// keeps each sample's distance to; and the largest distance to it,
+    /// rounded up).
     pub fn bounds(&self) -> (glam::Vec3, f32) {
         let lo = self
             .samples
@@ -32,14 +56,19 @@ impl SoftLight {
             .samples
             .iter()
             .fold(glam::Vec3::splat(f32::NEG_INFINITY), |a, &b| a.max(b));
-        let c = (lo + hi) * 0.5;
+        let c = self.rotation.map_or((lo + hi) * 0.5, |r| r.centre);
         let r = self
             .samples
             .iter()
             .map(|s| s.distance(c))
             .fold(0.0f32, f32::max);
         // Rounded up, and never 0 (one sample): every |y| stays <= 1.
-        let scale = c.abs().max_element().max(hi.abs().max_element()).max(1e-30);
+        let scale = c
+            .abs()
+            .max_element()
+            .max(hi.abs().max_element())
+            .max(lo.abs().max_element())
+            .max(1e-30);
         (c, (r * (1.0 + 1e-5)).max(scale * 1e-6))
     }
 
@@ -95,6 +124,13 @@ impl SoftLight {
                 "the influence polygon needs 3 to 64 corners, got {}",
                 self.polygon_degree
             )));
+        }
+        if let Some(r) = &self.rotation {
+            if !(r.centre.is_finite() && (r.axis.length() - 1.0).abs() < 1e-4) {
+                return Err(InvalidInput(
+                    "a per-pixel rotation needs a finite centre and a unit axis".into(),
+                ));
+            }
         }
         if self.uses_table() && !(2..=512).contains(&self.lut_resolution) {
             return Err(InvalidInput(format!(

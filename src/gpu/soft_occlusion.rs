@@ -24,6 +24,7 @@ use crate::vulkan::{
     GrowBuffer,
 };
 use crate::Result;
+use std::collections::HashMap;
 
 /// What soft occlusion reads of the passes before it: the texel lists, the
 /// casters, the tile bins and the view-sample clusters' tile boxes (a
@@ -75,44 +76,85 @@ pub struct SoftOcclusionPass {
     sure_alpha: Vec<Option<ComputePipeline>>,
     exact_alpha: Option<ComputePipeline>,
     unsure_alpha: Option<ComputePipeline>,
+    /// The kernels with the per-pixel rotation (specialization constant
+    /// `ROTATION`), by kernel and alpha round; made when a light first
+    /// needs them.
+    rotated: HashMap<(Kernel, bool), ComputePipeline>,
+    /// The light's per-pixel rotation (`pixel_rotation.glsl`; zeros
+    /// without one), uniform buffer.
+    pub pixel_rotation: GrowBuffer,
+}
+
+/// One of the occlusion shaders: look-up mode's (exact masks) or the
+/// approximate look-up's per block count, exact mode's, and the unsure
+/// tests.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Kernel {
+    Sure(usize),
+    Approx(usize),
+    Exact,
+    Unsure,
+}
+
+impl Kernel {
+    /// The kernel of `sl`'s mode (the occlusion, not the unsure tests).
+    fn of(sl: &SoftLight) -> Kernel {
+        match sl.mode {
+            SoftMode::Lut => Kernel::Sure(sl.blocks()),
+            SoftMode::Approx => Kernel::Approx(sl.blocks()),
+            SoftMode::Exact => Kernel::Exact,
+        }
+    }
+
+    /// Its pipeline, `alpha` the alpha-tested casters' round, `rotated`
+    /// with the per-pixel rotation.
+    fn make(self, ctx: &GpuContext, alpha: bool, rotated: bool) -> Result<ComputePipeline> {
+        let suffix = match (alpha, rotated) {
+            (false, false) => "",
+            (true, false) => "_alpha",
+            (false, true) => "_rotated",
+            (true, true) => "_alpha_rotated",
+        };
+        let flags = (alpha, rotated);
+        match self {
+            Kernel::Sure(b) => {
+                let name = format!("soft_occlusion_sure{b}{suffix}");
+                occlusion_pipeline(
+                    ctx,
+                    &name,
+                    SURE_SPIRV[b - 1],
+                    sure_pair_chunk(b as u32),
+                    flags,
+                )
+            }
+            Kernel::Approx(b) => {
+                let name = format!("soft_occlusion_approx{b}{suffix}");
+                occlusion_pipeline(ctx, &name, APPROX_SPIRV[b - 1], SOFT_PAIR_CHUNK, flags)
+            }
+            Kernel::Exact => {
+                let name = format!("soft_occlusion_exact{suffix}");
+                let spirv = shaders::SOFT_OCCLUSION_EXACT;
+                occlusion_pipeline(ctx, &name, spirv, SOFT_PAIR_CHUNK, flags)
+            }
+            Kernel::Unsure => {
+                unsure_pipeline(ctx, &format!("soft_occlusion_unsure{suffix}"), flags)
+            }
+        }
+    }
 }
 
 impl SoftOcclusionPass {
     /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let make = |name: &str, spirv, chunk| occlusion_pipeline(ctx, name, spirv, chunk, false);
         Ok(SoftOcclusionPass {
-            sure: SURE_SPIRV
-                .iter()
-                .enumerate()
-                .map(|(b, spirv)| {
-                    let name = format!("soft_occlusion_sure{}", b + 1);
-                    make(&name, spirv, sure_pair_chunk(b as u32 + 1))
-                })
+            sure: (1..=8)
+                .map(|b| Kernel::Sure(b).make(ctx, false, false))
                 .collect::<Result<_>>()?,
-            approx: [
-                shaders::SOFT_OCCLUSION_LUT1,
-                shaders::SOFT_OCCLUSION_LUT2,
-                shaders::SOFT_OCCLUSION_LUT3,
-                shaders::SOFT_OCCLUSION_LUT4,
-                shaders::SOFT_OCCLUSION_LUT5,
-                shaders::SOFT_OCCLUSION_LUT6,
-                shaders::SOFT_OCCLUSION_LUT7,
-                shaders::SOFT_OCCLUSION_LUT8,
-            ]
-            .iter()
-            .enumerate()
-            .map(|(b, spirv)| {
-                let name = format!("soft_occlusion_approx{}", b + 1);
-                make(&name, spirv, SOFT_PAIR_CHUNK)
-            })
-            .collect::<Result<_>>()?,
-            exact: make(
-                "soft_occlusion_exact",
-                shaders::SOFT_OCCLUSION_EXACT,
-                SOFT_PAIR_CHUNK,
-            )?,
-            unsure: unsure_pipeline(ctx, false)?,
+            approx: (1..=8)
+                .map(|b| Kernel::Approx(b).make(ctx, false, false))
+                .collect::<Result<_>>()?,
+            exact: Kernel::Exact.make(ctx, false, false)?,
+            unsure: Kernel::Unsure.make(ctx, false, false)?,
             unsure_list: GrowBuffer::storage("unsure_list"),
             counters_before: GrowBuffer::storage("counters_before_occlusion"),
             last_ranges: (0, Vec::new()),
@@ -123,6 +165,52 @@ impl SoftOcclusionPass {
             sure_alpha: (0..8).map(|_| None).collect(),
             exact_alpha: None,
             unsure_alpha: None,
+            rotated: HashMap::new(),
+            pixel_rotation: GrowBuffer::storage_uniform("pixel_rotation"),
+        })
+    }
+
+    /// Makes the rotated kernels that `sl` (with a rotation) needs in the
+    /// rounds that run.
+    fn make_rotated_pipelines(
+        &mut self,
+        ctx: &GpuContext,
+        sl: &SoftLight,
+        alpha_casters: bool,
+    ) -> Result<()> {
+        let mut want = vec![(Kernel::of(sl), false)];
+        if alpha_casters {
+            want.push((Kernel::of(&sl.for_round(CasterRound::Alpha)), true));
+        }
+        if sl.mode == SoftMode::Lut {
+            want.push((Kernel::Unsure, false));
+            want.extend(alpha_casters.then_some((Kernel::Unsure, true)));
+        }
+        for (kernel, alpha) in want {
+            if let std::collections::hash_map::Entry::Vacant(e) =
+                self.rotated.entry((kernel, alpha))
+            {
+                e.insert(kernel.make(ctx, alpha, true)?);
+            }
+        }
+        Ok(())
+    }
+
+    /// The pipeline of `kernel` in the recording's round, with the per-pixel
+    /// rotation when `rotated`.
+    fn pipeline(&self, kernel: Kernel, alpha: bool, rotated: bool) -> Result<&ComputePipeline> {
+        if rotated {
+            return self.rotated.get(&(kernel, alpha)).ok_or_else(not_made);
+        }
+        Ok(match (kernel, alpha) {
+            (Kernel::Sure(b), false) => &self.sure[b - 1],
+            (Kernel::Sure(b), true) => self.sure_alpha[b - 1].as_ref().ok_or_else(not_made)?,
+            (Kernel::Approx(b), false) => &self.approx[b - 1],
+            (Kernel::Approx(_), true) => return Err(not_made()),
+            (Kernel::Exact, false) => &self.exact,
+            (Kernel::Exact, true) => self.exact_alpha.as_ref().ok_or_else(not_made)?,
+            (Kernel::Unsure, false) => &self.unsure,
+            (Kernel::Unsure, true) => self.unsure_alpha.as_ref().ok_or_else(not_made)?,
         })
     }
 
@@ -131,18 +219,13 @@ impl SoftOcclusionPass {
         let blocks = sl.blocks();
         if sl.mode == SoftMode::Lut {
             if self.sure_alpha[blocks - 1].is_none() {
-                let name = format!("soft_occlusion_sure{blocks}_alpha");
-                let spirv = SURE_SPIRV[blocks - 1];
-                let chunk = sure_pair_chunk(blocks as u32);
-                self.sure_alpha[blocks - 1] =
-                    Some(occlusion_pipeline(ctx, &name, spirv, chunk, true)?);
+                self.sure_alpha[blocks - 1] = Some(Kernel::Sure(blocks).make(ctx, true, false)?);
             }
             if self.unsure_alpha.is_none() {
-                self.unsure_alpha = Some(unsure_pipeline(ctx, true)?);
+                self.unsure_alpha = Some(Kernel::Unsure.make(ctx, true, false)?);
             }
         } else if self.exact_alpha.is_none() {
-            let (name, spirv) = ("soft_occlusion_exact_alpha", shaders::SOFT_OCCLUSION_EXACT);
-            self.exact_alpha = Some(occlusion_pipeline(ctx, name, spirv, SOFT_PAIR_CHUNK, true)?);
+            self.exact_alpha = Some(Kernel::Exact.make(ctx, true, false)?);
         }
         Ok(())
     }
@@ -157,7 +240,9 @@ impl SoftOcclusionPass {
         sl: &SoftLight,
         alpha_casters: bool,
     ) -> Result<()> {
-        if alpha_casters {
+        if sl.rotation.is_some() {
+            self.make_rotated_pipelines(ctx, sl, alpha_casters)?;
+        } else if alpha_casters {
             self.make_alpha_pipelines(ctx, &sl.for_round(CasterRound::Alpha))?;
         }
         self.blocked
@@ -165,6 +250,8 @@ impl SoftOcclusionPass {
         let ubo = self.light_samples.get(ctx, 16 * MAX_SOFT_SAMPLES as u64)?;
         let v: Vec<[f32; 4]> = sl.samples.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect();
         ctx.upload_staged(ubo, 0, &v)?;
+        let rotation = self.pixel_rotation.get(ctx, 16 * (3 + 128))?;
+        ctx.upload_staged(rotation, 0, &pixel_rotation_block(sl))?;
         self.no_table.get(ctx, 16)?;
         self.counters_before.get(ctx, 4 * counter::COUNT as u64)?;
         // The unsure list (the units run in ranges whose entries fit it).
@@ -196,19 +283,17 @@ impl SoftOcclusionPass {
             r.cmd.fill_buffer(self.blocked.slice(), 0)?;
         }
         let alpha = r.round == CasterRound::Alpha;
+        let rotated = sl.rotation.is_some();
         match sl.mode {
             SoftMode::Exact => {
-                let exact = match alpha {
-                    true => self.exact_alpha.as_ref().ok_or_else(not_made)?,
-                    false => &self.exact,
-                };
+                let exact = self.pipeline(Kernel::Exact, alpha, rotated)?;
                 for block in 0..blocks as u32 {
                     self.occlusion_block(r, exact, block, None, passes, counters)?;
                 }
                 Ok(())
             }
             SoftMode::Approx => {
-                let pipeline = &self.approx[blocks - 1];
+                let pipeline = self.pipeline(Kernel::Approx(blocks), alpha, rotated)?;
                 let all = (0, r.frame.units());
                 self.occlusion(r, pipeline, all, table, passes, counters)
             }
@@ -225,10 +310,9 @@ impl SoftOcclusionPass {
         counters: &GrowBuffer,
     ) -> Result<()> {
         let blocks = sl.blocks();
-        let sure = match r.round == CasterRound::Alpha {
-            true => self.sure_alpha[blocks - 1].as_ref().ok_or_else(not_made)?,
-            false => &self.sure[blocks - 1],
-        };
+        let (alpha, rotated) = (r.round == CasterRound::Alpha, sl.rotation.is_some());
+        let plan = std::mem::take(&mut self.last_ranges);
+        let sure = self.pipeline(Kernel::Sure(blocks), alpha, rotated)?;
         let units = r.frame.units();
         let listed_at = 4 * counter::UNSURE_PAIRS as u64;
         // The units in ranges, each followed by the exact tests of its
@@ -242,7 +326,6 @@ impl SoftOcclusionPass {
         let capacity = self.capacity();
         debug_assert!(capacity >= per_unit);
         let safe = (capacity / per_unit).max(1) as u32;
-        let plan = std::mem::take(&mut self.last_ranges);
         let plan = if plan.0 == units { plan.1 } else { Vec::new() };
         let mut done = Vec::new();
         let mut len = safe;
@@ -277,7 +360,7 @@ impl SoftOcclusionPass {
                 continue;
             }
             retry = false;
-            self.test_unsure(r, listed, passes.0)?;
+            self.test_unsure(r, listed, passes.0, rotated)?;
             done.push((start, len, listed));
             start += len;
             // The next range: as many units as this one's density fits
@@ -300,15 +383,18 @@ impl SoftOcclusionPass {
     }
 
     /// Records the exact tests of the first `listed` entries of the unsure list.
-    fn test_unsure(&self, r: &mut Recording, listed: u64, lists: &TexelListPass) -> Result<()> {
+    fn test_unsure(
+        &self,
+        r: &mut Recording,
+        listed: u64,
+        lists: &TexelListPass,
+        rotated: bool,
+    ) -> Result<()> {
         let (list, triangles) = (&self.unsure_list, r.inputs.triangles);
         let samples = &lists.list_samples;
         let mut push = r.frame.push;
         push.more[3] = listed as u32;
-        let unsure = match r.round == CasterRound::Alpha {
-            true => self.unsure_alpha.as_ref().ok_or_else(not_made)?,
-            false => &self.unsure,
-        };
+        let unsure = self.pipeline(Kernel::Unsure, r.round == CasterRound::Alpha, rotated)?;
         let [records, textures, alphas] = r.inputs.alpha.bindings();
         r.pass("occlusion_unsure", |rec, _| {
             let bindings = [
@@ -320,6 +406,8 @@ impl SoftOcclusionPass {
                 records,
                 textures,
                 alphas,
+                Binding::uniform_texel(&lists.list_sample_index, vk::Format::R32_UINT),
+                Binding::uniform(&self.pixel_rotation),
             ];
             let groups = groups(listed as u32);
             rec.dispatch(unsure, &bindings, bytemuck::bytes_of(&push), groups)?;
@@ -397,6 +485,8 @@ impl SoftOcclusionPass {
                 records,
                 textures,
                 alphas,
+                Binding::uniform_texel(&lists.list_sample_index, vk::Format::R32_UINT),
+                Binding::uniform(&self.pixel_rotation),
             ];
             let groups = groups_2d(len.max(1));
             rec.dispatch(pipeline, &bindings, bytemuck::bytes_of(&push), groups)?;
@@ -418,14 +508,44 @@ const SURE_SPIRV: [&[u32]; 8] = [
     shaders::SOFT_OCCLUSION_SURE8,
 ];
 
+/// The approximate look-up's occlusion shaders, per block count.
+const APPROX_SPIRV: [&[u32]; 8] = [
+    shaders::SOFT_OCCLUSION_LUT1,
+    shaders::SOFT_OCCLUSION_LUT2,
+    shaders::SOFT_OCCLUSION_LUT3,
+    shaders::SOFT_OCCLUSION_LUT4,
+    shaders::SOFT_OCCLUSION_LUT5,
+    shaders::SOFT_OCCLUSION_LUT6,
+    shaders::SOFT_OCCLUSION_LUT7,
+    shaders::SOFT_OCCLUSION_LUT8,
+];
+
+/// The `PixelRotation` uniform block of `pixel_rotation.glsl` for `sl`:
+/// centre, axis, hashed seed and first pixel, then the angle table two per row (zeros
+/// without a rotation: the unrotated kernels do not read it).
+fn pixel_rotation_block(sl: &SoftLight) -> Vec<[u32; 4]> {
+    let f = |v: [f32; 4]| v.map(f32::to_bits);
+    let mut rows = vec![[0u32; 4]; 3 + 128];
+    if let Some(rot) = &sl.rotation {
+        rows[0] = f(rot.centre.extend(0.0).to_array());
+        rows[1] = f(rot.axis.extend(0.0).to_array());
+        rows[2] = [crate::light::hash32(rot.seed), rot.first_pixel, 0, 0];
+        for (k, pair) in crate::light::pixel_rotation_table().chunks(2).enumerate() {
+            rows[3 + k] = f([pair[0][0], pair[0][1], pair[1][0], pair[1][1]]);
+        }
+    }
+    rows
+}
+
 /// A soft occlusion pipeline: `chunk` pairs per work unit (specialization
-/// constant 2), `alpha` the alpha-tested casters' round (constant 5).
+/// constant 2); `alpha`: the alpha-tested casters' round (constant 5);
+/// `rotated`: the per-pixel rotation (constant 6).
 fn occlusion_pipeline(
     ctx: &GpuContext,
     name: &str,
     spirv: &[u32],
     chunk: (u32, u32),
-    alpha: bool,
+    (alpha, rotated): (bool, bool),
 ) -> Result<ComputePipeline> {
     let sb = DescriptorKind::StorageBuffer;
     let tb = DescriptorKind::UniformTexelBuffer;
@@ -434,28 +554,29 @@ fn occlusion_pipeline(
         name,
         spirv,
         bindings: &[
-            tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb, tb, tb, tb, tb,
+            tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb, tb, tb, tb, tb, tb, ub,
         ],
         push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
-        specialization: &[chunk, (5, alpha as u32)],
+        specialization: &[chunk, (5, alpha as u32), (6, rotated as u32)],
     })
 }
 
-/// The unsure tests' pipeline (`alpha`: the alpha-tested casters' round).
-fn unsure_pipeline(ctx: &GpuContext, alpha: bool) -> Result<ComputePipeline> {
+/// The unsure tests' pipeline (`alpha`: the alpha-tested casters' round;
+/// `rotated`: the per-pixel rotation).
+fn unsure_pipeline(
+    ctx: &GpuContext,
+    name: &str,
+    (alpha, rotated): (bool, bool),
+) -> Result<ComputePipeline> {
     let sb = DescriptorKind::StorageBuffer;
     let tb = DescriptorKind::UniformTexelBuffer;
     let ub = DescriptorKind::UniformBuffer;
     ctx.create_compute_pipeline(&ComputePipelineDesc {
-        name: if alpha {
-            "soft_occlusion_unsure_alpha"
-        } else {
-            "soft_occlusion_unsure"
-        },
+        name,
         spirv: shaders::SOFT_OCCLUSION_UNSURE,
-        bindings: &[tb, tb, tb, sb, ub, tb, tb, tb],
+        bindings: &[tb, tb, tb, sb, ub, tb, tb, tb, tb, ub],
         push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
-        specialization: &[(5, alpha as u32)],
+        specialization: &[(5, alpha as u32), (6, rotated as u32)],
     })
 }
 

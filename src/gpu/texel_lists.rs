@@ -33,6 +33,9 @@ pub struct TexelListPass {
     pub sample_slot: GrowBuffer,
     /// Per list slot: the sample's position (xyz float bits) and triangle id.
     pub list_samples: GrowBuffer,
+    /// Per list slot: the sample's index among the view samples (its
+    /// pixel: the per-pixel rotation's angle).
+    pub list_sample_index: GrowBuffer,
     /// Per tile: its longest list (occlusion work units).
     pub tile_max_len: GrowBuffer,
 }
@@ -60,7 +63,7 @@ impl TexelListPass {
             scatter: make(
                 "texel_lists_scatter",
                 shaders::TEXEL_LISTS_SCATTER,
-                &[sb; 5],
+                &[sb; 6],
             )?,
             scan: ScanPass::new(ctx)?,
             counts: GrowBuffer::storage("texel_counts"),
@@ -68,6 +71,7 @@ impl TexelListPass {
             sample_texel: GrowBuffer::storage("sample_texel"),
             sample_slot: GrowBuffer::storage("sample_slot"),
             list_samples: GrowBuffer::storage("light_texel_lists"),
+            list_sample_index: GrowBuffer::storage("list_sample_index"),
             tile_max_len: GrowBuffer::storage("tile_max_len"),
         })
     }
@@ -100,6 +104,7 @@ impl TexelListPass {
         self.sample_texel.get(ctx, 4 * n)?;
         self.sample_slot.get(ctx, 4 * n)?;
         self.list_samples.get(ctx, 16 * n)?;
+        self.list_sample_index.get(ctx, 4 * n)?;
         self.tile_max_len.get(ctx, 4 * frame.tiles as u64)?;
         Ok(())
     }
@@ -138,6 +143,7 @@ impl TexelListPass {
                 storage(&self.sample_texel),
                 storage(&self.sample_slot),
                 storage(&self.list_samples),
+                storage(&self.list_sample_index),
             ];
             rec.dispatch(&self.scatter, &bindings, pc, groups(n))
         })
@@ -151,6 +157,7 @@ impl TexelListPass {
             &self.sample_texel,
             &self.sample_slot,
             &self.list_samples,
+            &self.list_sample_index,
             &self.tile_max_len,
         ]
         .iter()

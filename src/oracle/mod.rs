@@ -394,6 +394,49 @@ impl Oracle {
         out
     }
 
+    /// [`Oracle::visibility`] with a per-pixel rotation: the pixel at
+    /// index `i` of `view.samples` sees each of `light`'s samples turned
+    /// by [`PixelRotation::turn`]`(l, i)` (the GPU's angles, in f64).
+    pub fn visibility_rotated(
+        &self,
+        view: &ViewSamples,
+        light: &[DVec3],
+        rotation: &crate::light::PixelRotation,
+        progress: Option<&indicatif::ProgressBar>,
+    ) -> Vec<f32> {
+        let table = crate::light::pixel_rotation_table();
+        let count = light.len();
+        let mut out = vec![0f32; view.samples.len()];
+        let w = (view.width as usize).max(1);
+        out.par_chunks_mut(w)
+            .zip(view.samples.par_chunks(w))
+            .enumerate()
+            .for_each(|(row, (row_out, row_in))| {
+                let mut hint = u32::MAX;
+                let mut traced = 0;
+                for (col, (o, s)) in row_out.iter_mut().zip(row_in).enumerate() {
+                    let Some(s) = s else { continue };
+                    let Some(rs) = self.rel_sample(s) else {
+                        continue;
+                    };
+                    let pixel = (row * w + col) as u32;
+                    let visible = light
+                        .iter()
+                        .map(|&l| self.rel_point(rotation.turn(l, pixel, &table)))
+                        .filter(|t| self.shadow_query(&rs, t, &mut hint, &mut traced))
+                        .count();
+                    if count > 0 {
+                        *o = (visible as f64 / count as f64) as f32;
+                    }
+                }
+                self.shadow_rays.fetch_add(traced, Ordering::Relaxed);
+                if let Some(pb) = progress {
+                    pb.inc(1);
+                }
+            });
+        out
+    }
+
     /// Per pixel, one bit per light sample: bit `s % 64` of word `s / 64` is
     /// set when light sample `s` is visible from the pixel's view sample
     /// (see the [module documentation](self)). Each mask has

@@ -75,7 +75,7 @@ pub fn make_dump(
                 .lights
                 .iter()
                 .zip(light_samples)
-                .map(|(l, s)| DumpLight::new(l, s))
+                .map(|(l, s)| DumpLight::new(l, s, desc.camera.eye))
                 .collect(),
             frames: Vec::new(),
         },

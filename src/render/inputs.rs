@@ -8,6 +8,7 @@ use glam::{DVec3, Vec3};
 
 use crate::cpu::light_view::LightView;
 use crate::gpu::shared::{GpuTriangle, GpuViewSample};
+use crate::gpu::soft_light::SampleRotation;
 use crate::gpu::{gpu_inputs, SoftLight};
 use crate::light::{Light, LightShape};
 use crate::oracle::ViewSample;
@@ -36,6 +37,12 @@ pub fn soft_light(
         mode: settings.mode,
         lut_resolution: settings.lut_resolution,
         polygon_degree: INFLUENCE_POLYGON_DEGREE,
+        rotation: light.pixel_rotation(eye).map(|r| SampleRotation {
+            centre: (r.centre - eye).as_vec3(),
+            axis: r.axis.as_vec3().normalize(),
+            seed: r.seed,
+            first_pixel: 0,
+        }),
     };
     let (centre, _) = sl.bounds();
     Some((sl, LightView::Point { position: centre }))

@@ -49,9 +49,15 @@ pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Resul
     for (k, light) in desc.lights.iter().enumerate() {
         let samples = light.light_samples();
         let t = Instant::now();
-        let (vis, ev, rgb) = match light.sample_colors() {
-            Some(colors) => oracle_coloured_light(&oracle, &view, &samples, &colors),
-            None => {
+        let rotation = light.pixel_rotation(desc.camera.eye);
+        let (vis, ev, rgb) = match (light.sample_colors(), rotation, &samples) {
+            (Some(colors), _, _) => oracle_coloured_light(&oracle, &view, &samples, &colors),
+            (None, Some(rot), LightSamples::Positions(points)) => {
+                let (vis, ev) =
+                    oracle_rotated_light(&oracle, &view, points, &rot, options.progress);
+                (vis, ev, None)
+            }
+            _ => {
                 let (vis, ev) = oracle_light(&oracle, &view, &samples, k, options.progress);
                 (vis, ev, None)
             }
@@ -142,6 +148,41 @@ fn oracle_light(
         .samples
         .iter()
         .map(|s| s.is_some_and(|s| faces_light(s.position, s.normal, samples)))
+        .collect();
+    (vis, evaluated)
+}
+
+/// [`oracle_light`] for a light with a per-pixel rotation: each pixel's
+/// samples turned by its angle.
+fn oracle_rotated_light(
+    oracle: &Oracle,
+    view: &ViewSamples,
+    points: &[glam::DVec3],
+    rotation: &crate::light::PixelRotation,
+    progress: bool,
+) -> (Vec<f32>, Vec<bool>) {
+    let pb = progress_bar(
+        view.height as u64,
+        &format!("oracle light ({} samples, turned per pixel)", points.len()),
+        progress,
+    );
+    let vis = oracle.visibility_rotated(view, points, rotation, pb.as_ref());
+    if let Some(pb) = pb {
+        pb.finish_and_clear();
+    }
+    let table = crate::light::pixel_rotation_table();
+    let evaluated = view
+        .samples
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            s.is_some_and(|s| {
+                let turned = points.iter().map(|&l| rotation.turn(l, i as u32, &table));
+                turned
+                    .into_iter()
+                    .any(|l| s.normal.dot(l - s.position) > 0.0)
+            })
+        })
         .collect();
     (vis, evaluated)
 }

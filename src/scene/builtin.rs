@@ -387,6 +387,7 @@ fn point_light(position: DVec3) -> Light {
         color: [1.0; 3],
         intensity: 1.0,
         emission: None,
+        per_pixel_rotation: false,
     }
 }
 

@@ -221,6 +221,9 @@ struct FileLight {
     /// An emission texture (PNG or any format `image` reads), relative to
     /// the scene file: rect and disk lights only.
     texture: Option<String>,
+    /// Per-pixel rotation of the samples ([`Light::per_pixel_rotation`]).
+    #[serde(default)]
+    per_pixel_rotation: bool,
 }
 
 fn default_seed() -> u64 {
@@ -359,6 +362,7 @@ impl FileLight {
                 }
                 None => None,
             },
+            per_pixel_rotation: self.per_pixel_rotation,
         };
         light.validate().map_err(|e| strip_prefix(&e))?;
         Ok(light)
@@ -551,6 +555,7 @@ pub fn default_view(scene: &Scene) -> (Camera, Light) {
         color: [1.0; 3],
         intensity: 1.0,
         emission: None,
+        per_pixel_rotation: false,
     };
     (camera, light)
 }
@@ -585,7 +590,7 @@ pub fn place_on_ground(scene: &mut Scene) {
 pub fn replace_light(desc: &mut SceneDescription, spec: &str) -> Result<()> {
     let err = |m: String| Error::InvalidInput(format!("--light {spec}: {m}"));
     let (kind, rest) = spec.split_once(':').unwrap_or((spec, ""));
-    let (mut radius, mut samples) = (None, 128u32);
+    let (mut radius, mut samples, mut rotate) = (None, 128u32, false);
     for kv in rest.split(',').filter(|s| !s.is_empty()) {
         let (k, v) = kv
             .split_once('=')
@@ -612,7 +617,12 @@ pub fn replace_light(desc: &mut SceneDescription, spec: &str) -> Result<()> {
                         ))
                     })?;
             }
-            _ => return Err(err(format!("unknown key {k:?} (radius, samples)"))),
+            "rotate" => {
+                rotate = v
+                    .parse()
+                    .map_err(|_| err(format!("rotate {v:?} is not true or false")))?;
+            }
+            _ => return Err(err(format!("unknown key {k:?} (radius, samples, rotate)"))),
         }
     }
     let (lo, hi) = desc
@@ -675,11 +685,14 @@ pub fn replace_light(desc: &mut SceneDescription, spec: &str) -> Result<()> {
         .first()
         .cloned()
         .unwrap_or(default_view(&desc.scene).1);
-    desc.lights = vec![Light {
+    let light = Light {
         shape,
         samples,
+        per_pixel_rotation: rotate,
         ..template
-    }];
+    };
+    light.validate().map_err(|e| err(strip_prefix(&e)))?;
+    desc.lights = vec![light];
     Ok(())
 }
 

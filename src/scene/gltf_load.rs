@@ -1057,6 +1057,7 @@ impl<'a> Loader<'a> {
             color,
             intensity: 1.0,
             emission: None,
+            per_pixel_rotation: false,
         })
     }
 
