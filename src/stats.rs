@@ -206,6 +206,25 @@ pub struct FrameStats {
     /// Buffers and images the whole frame created (0 for a second frame of
     /// the same size: every resource lives across frames).
     pub allocations: Allocations,
+    /// What the frame took from the one before
+    /// ([`crate::render::Engine::render_reusing`]); absent for a frame
+    /// that reused nothing by design ([`crate::render::Engine::render`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reused: Option<Reused>,
+}
+
+/// What a frame of [`crate::render::Engine::render_reusing`] took from the
+/// frame before instead of computing it.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Reused {
+    /// Nothing changed: the whole frame is the last one's (no GPU work).
+    pub frame: bool,
+    /// The view samples and triangles (geometry, camera and settings
+    /// unchanged): no rasterization, no upload.
+    pub view_samples: bool,
+    /// Per light: its visibility (the light and the view unchanged), in
+    /// which case its `lights` entry is the earlier frame's.
+    pub lights: Vec<bool>,
 }
 
 /// Milliseconds of a frame's steps outside the lights' passes.

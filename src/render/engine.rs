@@ -33,6 +33,9 @@ pub struct Engine {
     pub(super) triangles: GrowBuffer,
     /// The shading normals of the last frame's scene.
     pub(super) shading: ShadingCache,
+    /// Counts the frames whose view samples and triangles the GPU buffers
+    /// hold ([`super::FrameReuse`] reuses them only while it is its own).
+    pub(super) frame_id: u64,
 }
 
 /// Hard-shadow visibility of a set of view samples for one light.
@@ -89,6 +92,7 @@ impl Engine {
             shadows,
             triangles: GrowBuffer::storage("triangles"),
             shading: ShadingCache::default(),
+            frame_id: 0,
         })
     }
 

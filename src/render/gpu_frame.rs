@@ -20,8 +20,24 @@ use crate::shade::shade_coloured;
 use crate::stats::{FrameCounters, FrameMs, FrameStats, LightStats, ShadowStats, Stats};
 use crate::Result;
 
+/// A frame's view samples and triangles, in the engine's GPU buffers and
+/// read back.
+#[derive(Clone)]
+pub(super) struct FrameView {
+    pub(super) view: ViewSamples,
+    /// View samples in the buffer (pixels).
+    pub(super) n: usize,
+    /// Pixels with a view sample.
+    pub(super) view_samples: usize,
+    /// Triangles in the buffer.
+    pub(super) triangles: usize,
+    /// GPU time of the view-sample pass.
+    pub(super) view_ms: f64,
+}
+
 /// One light's visibility and evaluated flags, per view sample.
-struct LightResult {
+#[derive(Clone)]
+pub(super) struct LightResult {
     visibility: Vec<f32>,
     /// Per channel, for a light with an emission texture.
     visibility_rgb: Option<Vec<[f32; 3]>>,
@@ -39,6 +55,19 @@ impl Engine {
         desc.validate()?;
         let t0 = Instant::now();
         let before = self.ctx.allocations();
+        let fv = self.frame_view(desc)?;
+        // 2-5. Per light: lists, casters, rasterization, occlusion, resolve.
+        let mut lights = Vec::new();
+        for k in 0..desc.lights.len() {
+            lights.push(self.light(desc, k, fv.n, fv.triangles)?);
+        }
+        Ok(self.finish_frame(desc, &fv, &lights, (t0, before), None))
+    }
+
+    /// A frame's step 1: its triangles (camera-relative, alpha tests
+    /// marked) and view samples, rasterized on the GPU, both left in the
+    /// engine's buffers for the lights' passes, and read back.
+    pub(super) fn frame_view(&mut self, desc: &SceneDescription) -> Result<FrameView> {
         let eye = desc.camera.eye;
         let (_, mut gpu_tris) = gpu_inputs(&[], &gpu_triangles(&desc.scene, eye));
         let alpha = AlphaTables::new(&desc.scene);
@@ -50,6 +79,7 @@ impl Engine {
             (tables, true) => Some(tables),
             _ => None,
         };
+        self.frame_id += 1;
         let (view_buf, view_ms) = self
             .view
             .render(&self.ctx, &desc.camera, &gpu_tris, alpha)?;
@@ -73,12 +103,25 @@ impl Engine {
         };
         let tri_buf = self.triangles.get(&self.ctx, 48 * gpu_tris.len() as u64)?;
         self.ctx.upload_staged(tri_buf, 0, &gpu_tris)?;
+        Ok(FrameView {
+            view_samples: gpu_view.iter().filter(|s| s.flags != 0).count(),
+            view,
+            n,
+            triangles: gpu_tris.len(),
+            view_ms,
+        })
+    }
 
-        // 2-5. Per light: lists, casters, rasterization, occlusion, resolve.
-        let mut lights = Vec::new();
-        for k in 0..desc.lights.len() {
-            lights.push(self.light(desc, k, n, gpu_tris.len())?);
-        }
+    /// A frame's last steps: shading with the lights' results, the
+    /// statistics (`reused`: what came from an earlier frame) and the dump.
+    pub(super) fn finish_frame(
+        &mut self,
+        desc: &SceneDescription,
+        fv: &FrameView,
+        lights: &[LightResult],
+        (t0, before): (Instant, crate::vulkan::Allocations),
+        reused: Option<crate::stats::Reused>,
+    ) -> Frame {
         let visibility: Vec<Vec<f32>> = lights.iter().map(|l| l.visibility.clone()).collect();
         let evaluated: Vec<Vec<bool>> = lights.iter().map(|l| l.evaluated.clone()).collect();
         let visibility_rgb: Vec<_> = lights.iter().map(|l| l.visibility_rgb.clone()).collect();
@@ -87,7 +130,7 @@ impl Engine {
         let image = shade_coloured(
             &desc.scene,
             normals,
-            &view,
+            &fv.view,
             &desc.lights,
             &crate::shade::light_colors(&desc.lights),
             &visibility,
@@ -101,33 +144,34 @@ impl Engine {
             width: desc.camera.width,
             height: desc.camera.height,
             ms: FrameMs {
-                view_samples_gpu: view_ms,
+                view_samples_gpu: fv.view_ms,
                 shade_cpu: shade_ms,
             },
-            lights: lights.into_iter().map(|l| l.stats).collect(),
+            lights: lights.iter().map(|l| l.stats.clone()).collect(),
             total_ms: t0.elapsed().as_secs_f64() * 1e3,
             counters: FrameCounters {
-                triangles: gpu_tris.len(),
-                view_samples: gpu_view.iter().filter(|s| s.flags != 0).count(),
+                triangles: fv.triangles,
+                view_samples: fv.view_samples,
             },
             allocations: self.ctx.allocations() - before,
+            reused,
         });
         let light_samples: Vec<_> = desc.lights.iter().map(|l| l.light_samples()).collect();
         let dump = make_dump(
             desc,
-            &view,
+            &fv.view,
             &light_samples,
             &visibility,
             &visibility_rgb,
             &evaluated,
             &stats,
         );
-        Ok(Frame {
+        Frame {
             dump,
             image,
-            view,
+            view: fv.view.clone(),
             stats,
-        })
+        }
     }
 
     /// Renders the next frame of `acc` ([`super::Accumulator`]): `desc`
@@ -170,7 +214,7 @@ impl Engine {
 
     /// Light `k`'s shadow passes over the frame's `n` view samples and `nt`
     /// triangles, which stay on the GPU between passes.
-    fn light(
+    pub(super) fn light(
         &mut self,
         desc: &SceneDescription,
         k: usize,

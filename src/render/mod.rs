@@ -25,6 +25,7 @@ pub mod engine;
 pub mod gpu_frame;
 pub mod inputs;
 pub mod reference;
+pub mod reuse;
 pub mod validate;
 
 pub use accumulate::{frame_lights, frame_seed, Accumulator};
@@ -35,6 +36,7 @@ pub use inputs::{
     gpu_triangles, light_view, soft_light, user_gpu_triangles, INFLUENCE_POLYGON_DEGREE,
 };
 pub use reference::{render_reference, MAX_REFERENCE_PIXELS};
+pub use reuse::{FrameReuse, Generations};
 pub use validate::{validate_gpu_inputs, validate_shadow_inputs};
 
 use crate::dump::Dump;
