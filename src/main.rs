@@ -1,4 +1,8 @@
 //! `afs`: the alias-free shadows command-line tool.
+//!
+//! Its doc comments are clap's `--help` text, where `[shadows]` names a
+//! TOML table, not a link.
+#![allow(rustdoc::broken_intra_doc_links)]
 
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -396,7 +396,7 @@ impl Oracle {
 
     /// [`Oracle::visibility`] with a per-pixel rotation: the pixel at
     /// index `i` of `view.samples` sees each of `light`'s samples turned
-    /// by [`PixelRotation::turn`]`(l, i)` (the GPU's angles, in f64).
+    /// by [`PixelRotation::turn`](crate::light::PixelRotation::turn)`(l, i)` (the GPU's angles, in f64).
     pub fn visibility_rotated(
         &self,
         view: &ViewSamples,
