@@ -382,6 +382,20 @@ pub struct Comparison {
     pub max_abs: f64,
     /// Share of compared pixels whose visibilities differ by more than one light sample (1/samples).
     pub share_over_one_sample: f64,
+    /// A light with an emission texture in both dumps
+    /// (`visibility_K_rgb.exr`): the same differences per channel.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub channels: Option<ChannelComparison>,
+}
+
+/// How two dumps' per-channel visibilities of one light differ, over the
+/// pixels that have a view sample in both.
+#[derive(Clone, Debug, Serialize)]
+pub struct ChannelComparison {
+    /// Root mean square difference of red, green and blue.
+    pub rmse: [f64; 3],
+    /// Largest absolute difference of red, green and blue.
+    pub max_abs: [f64; 3],
 }
 
 /// Compares the visibility of every light of `a` and `b`.
@@ -427,6 +441,27 @@ pub fn compare(a: &Dump, b: &Dump) -> Result<Vec<Comparison>> {
             }
         }
         let nf = n.max(1) as f64;
+        let channels = match (&a.visibility_rgb.get(k), &b.visibility_rgb.get(k)) {
+            (Some(Some(ca)), Some(Some(cb))) => {
+                let (mut sq, mut max) = ([0.0f64; 3], [0.0f64; 3]);
+                let both = va.iter().zip(vb).map(|(pa, pb)| pa[3] > 0.5 && pb[3] > 0.5);
+                for ((pa, pb), both) in ca.iter().zip(cb).zip(both) {
+                    if !both {
+                        continue;
+                    }
+                    for c in 0..3 {
+                        let d = (pa[c] as f64 - pb[c] as f64).abs();
+                        sq[c] += d * d;
+                        max[c] = max[c].max(d);
+                    }
+                }
+                Some(ChannelComparison {
+                    rmse: sq.map(|q| (q / nf).sqrt()),
+                    max_abs: max,
+                })
+            }
+            _ => None,
+        };
         out.push(Comparison {
             light: k,
             pixels: n,
@@ -435,6 +470,7 @@ pub fn compare(a: &Dump, b: &Dump) -> Result<Vec<Comparison>> {
             rmse: (sq / nf).sqrt(),
             max_abs: max,
             share_over_one_sample: over as f64 / nf,
+            channels,
         });
     }
     Ok(out)

@@ -495,6 +495,17 @@ fn run(cli: Cli) -> Result<()> {
                         100.0 * r.share_over_one_sample,
                         r.coverage_mismatch
                     );
+                    if let Some(c) = &r.channels {
+                        println!(
+                            "       rgb rmse {:.6e} {:.6e} {:.6e}, max_abs {:.5} {:.5} {:.5}",
+                            c.rmse[0],
+                            c.rmse[1],
+                            c.rmse[2],
+                            c.max_abs[0],
+                            c.max_abs[1],
+                            c.max_abs[2]
+                        );
+                    }
                 }
             }
         }

@@ -4,9 +4,9 @@
 //! channel on the frame's own view samples, plus the texture's mapping, the
 //! dump, the picture and the errors.
 
-use alias_free_shadows::dump::Dump;
+use alias_free_shadows::dump::{compare, Dump};
 use alias_free_shadows::light::{LightSamples, LightShape};
-use alias_free_shadows::render::{Engine, FrameOptions};
+use alias_free_shadows::render::{render_reference, Engine, FrameOptions};
 use alias_free_shadows::scene::file::{self, SceneDescription};
 use alias_free_shadows::vulkan::ContextOptions;
 
@@ -133,6 +133,22 @@ fn channels_match_the_oracle() {
     assert!(dir.path().join("visibility_0_rgb.exr").is_file());
     let back = Dump::read(dir.path()).unwrap();
     assert_eq!(back.visibility_rgb, frame.dump.visibility_rgb);
+
+    // `afs compare` compares the channels too: the oracle's frame (its own
+    // view samples) is close, and a changed channel shows.
+    let reference = render_reference(&desc, FrameOptions::default()).unwrap();
+    let rows = compare(&frame.dump, &reference.dump).unwrap();
+    let c = rows[0].channels.as_ref().expect("both dumps have channels");
+    assert!(c.rmse.iter().all(|&e| e < 0.05), "{c:?}");
+    let mut changed = frame.dump.clone();
+    for p in changed.visibility_rgb[0].as_mut().unwrap() {
+        p[1] = (p[1] + 0.25).min(1.0);
+    }
+    let rows = compare(&frame.dump, &changed).unwrap();
+    let c = rows[0].channels.as_ref().unwrap();
+    assert_eq!((c.rmse[0], c.rmse[2]), (0.0, 0.0));
+    assert!(c.rmse[1] > 0.05 && c.max_abs[1] > 0.2, "{c:?}");
+    assert_eq!(rows[0].rmse, 0.0, "the visible fraction did not change");
 }
 
 /// Only rect and disk lights take a texture, and a missing file is named.
