@@ -27,6 +27,7 @@ LIGHTS = {
     "directional": 'kind = "directional"\ndirection = [0.3, -1.0, 0.2]\n',
     "sphere": 'kind = "sphere"\nposition = [2.0, 5.0, 1.0]\nradius = 0.5\nsamples = 64\ndistribution = "sobol"\nseed = 3\n',
     "disk": 'kind = "disk"\nposition = [0.0, 4.0, 0.0]\nradius = 0.4\nnormal = [0.0, -1.0, 0.0]\nsamples = 32\ndistribution = "stratified"\n',
+    "disk_rotated": 'kind = "disk"\nper_pixel_rotation = true\nposition = [0.0, 4.0, 0.0]\nradius = 0.4\nnormal = [0.0, -1.0, 0.0]\nsamples = 32\ndistribution = "stratified"\n',
     "rect": 'kind = "rect"\nposition = [0.0, 4.0, 0.0]\nsize = [1.0, 0.5]\nnormal = [0.0, -1.0, 0.0]\ntangent = [1.0, 0.0, 0.0]\nsamples = 16\n',
     "rect_textured": 'kind = "rect"\nposition = [0.0, 4.0, 0.0]\nsize = [1.0, 0.5]\nnormal = [0.0, -1.0, 0.0]\nsamples = 16\ntexture = "glass.png"\n',
     "ellipsoid": 'kind = "ellipsoid"\nposition = [0.0, 4.0, 0.0]\nsemi_axes = [0.5, 0.2, 0.3]\nnormal = [0.0, -1.0, 0.0]\nsamples = 8\ndistribution = "uniform"\n',
