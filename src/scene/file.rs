@@ -685,10 +685,13 @@ pub fn replace_light(desc: &mut SceneDescription, spec: &str) -> Result<()> {
         .first()
         .cloned()
         .unwrap_or(default_view(&desc.scene).1);
+    // The first light's texture goes only to a light that can carry one.
+    let textured = matches!(shape, LightShape::Rect { .. } | LightShape::Disk { .. });
     let light = Light {
         shape,
         samples,
         per_pixel_rotation: rotate,
+        emission: template.emission.clone().filter(|_| textured),
         ..template
     };
     light.validate().map_err(|e| err(strip_prefix(&e)))?;
@@ -699,6 +702,24 @@ pub fn replace_light(desc: &mut SceneDescription, spec: &str) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn replace_light_keeps_a_texture_only_where_it_fits() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/stained_glass.toml");
+        let textured = load(path.to_str().unwrap()).unwrap();
+        assert!(textured.lights[0].emission.is_some());
+        let mut desc = textured.clone();
+        replace_light(&mut desc, "sphere").unwrap();
+        assert!(desc.lights[0].emission.is_none());
+        let mut desc = textured.clone();
+        replace_light(&mut desc, "rect").unwrap();
+        assert!(desc.lights[0].emission.is_some());
+        let mut desc = textured;
+        let e = replace_light(&mut desc, "disk:rotate=true")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("texture"), "{e}");
+    }
 
     #[test]
     fn replace_light_puts_the_kind_where_the_light_was() {
