@@ -14,14 +14,9 @@ use alias_free_shadows::vulkan::ContextOptions;
 use glam::{DVec2, DVec3};
 
 mod common;
-use common::engine_view_samples;
+use common::{engine_view_samples, soft_in_mode, words_differ};
 
 const SIZE: u32 = 40;
-
-/// Mask words that differ between two runs of the same samples.
-fn words_differ(a: &[u32], b: &[u32]) -> usize {
-    a.iter().zip(b).filter(|(x, y)| x != y).count()
-}
 
 fn specs() -> Vec<String> {
     let mut out: Vec<String> = alias_free_shadows::scene::builtin::NAMES
@@ -103,17 +98,8 @@ fn look_up_mode_masks_equal_exact_mode() {
                     samples,
                     ..light.clone()
                 };
-                let run = |engine: &mut Engine, mode| {
-                    let settings = ShadowSettings {
-                        mode,
-                        ..Default::default()
-                    };
-                    engine
-                        .soft_shadows(&desc.scene, eye, &view.samples, &light, &settings)
-                        .unwrap()
-                };
-                let lut = run(&mut engine, SoftMode::Lut);
-                let exact = run(&mut engine, SoftMode::Exact);
+                let lut = soft_in_mode(&mut engine, &desc, &view, &light, SoftMode::Lut);
+                let exact = soft_in_mode(&mut engine, &desc, &view, &light, SoftMode::Exact);
                 assert_eq!(lut.visible.len(), exact.visible.len());
                 let differ = words_differ(&lut.visible, &exact.visible);
                 let s = lut.stats.soft.as_ref().unwrap();

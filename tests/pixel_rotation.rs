@@ -13,7 +13,7 @@ use alias_free_shadows::vulkan::ContextOptions;
 use glam::DVec3;
 
 mod common;
-use common::{engine_light, engine_view_samples};
+use common::{engine_light, engine_view_samples, soft_in_mode, words_differ};
 
 /// The largest share of (pixel, light sample) pairs that may disagree with
 /// the oracle: exact mode's bound in `soft_conformance.rs`.
@@ -195,24 +195,9 @@ fn rotated_lookup_masks_equal_exact_masks() {
         for mut light in symmetric_lights(&desc) {
             for samples in [64, 256] {
                 light.samples = samples;
-                let run = |engine: &mut Engine, mode| {
-                    let settings = ShadowSettings {
-                        mode,
-                        ..Default::default()
-                    };
-                    engine
-                        .soft_shadows(&desc.scene, eye, &view.samples, &light, &settings)
-                        .unwrap()
-                };
-                let lut = run(&mut engine, SoftMode::Lut);
-                let exact = run(&mut engine, SoftMode::Exact);
-                let differ = lut
-                    .visible
-                    .iter()
-                    .zip(&exact.visible)
-                    .filter(|(a, b)| a != b)
-                    .count();
-                assert_eq!(lut.visible.len(), exact.visible.len());
+                let lut = soft_in_mode(&mut engine, &desc, &view, &light, SoftMode::Lut);
+                let exact = soft_in_mode(&mut engine, &desc, &view, &light, SoftMode::Exact);
+                let differ = words_differ(&lut.visible, &exact.visible);
                 assert_eq!(
                     differ, 0,
                     "{spec} {:?} {samples} samples: {differ} mask words differ",
@@ -330,13 +315,7 @@ fn batched_view_samples_keep_their_pixels_angles() {
         .soft_shadows(&desc.scene, eye, &view.samples, &light, &settings)
         .unwrap();
     engine.set_view_sample_batch_limit(None);
-    let differ = whole
-        .visible
-        .iter()
-        .zip(&batched.visible)
-        .filter(|(a, b)| a != b)
-        .count();
-    assert_eq!(whole.visible.len(), batched.visible.len());
+    let differ = words_differ(&whole.visible, &batched.visible);
     assert_eq!(
         differ, 0,
         "{differ} mask words differ between one run and batches"

@@ -44,14 +44,10 @@ fn unsure_list_entries(ctx: &GpuContext) -> u64 {
 
 /// The soft occlusion pipelines and the masks they write.
 pub struct SoftOcclusionPass {
-    /// Look-up mode (exact masks), one pipeline per number of 128-sample
-    /// blocks (1 to 8).
-    sure: Vec<ComputePipeline>,
-    /// Approximate (nearest-texel) look-up mode, per block count.
-    approx: Vec<ComputePipeline>,
-    exact: ComputePipeline,
-    /// Look-up mode: the unsure list's exact tests.
-    unsure: ComputePipeline,
+    /// Every kernel by (kernel, alpha round, per-pixel rotation)
+    /// (specialization constants `ALPHA` and `ROTATION`): the plain ones
+    /// made up front, the others when a light first needs them.
+    pipelines: HashMap<(Kernel, bool, bool), ComputePipeline>,
     /// Look-up mode: (slot, triangle, block) and unsure bits per entry
     /// (32 B), kept across frames.
     unsure_list: GrowBuffer,
@@ -70,16 +66,6 @@ pub struct SoftOcclusionPass {
     pub light_samples: GrowBuffer,
     /// Bound in place of the table in exact mode (a view may not be empty).
     no_table: GrowBuffer,
-    /// The alpha-tested casters' round (specialization constant `ALPHA`):
-    /// look-up mode per block count, exact mode, the unsure tests; made
-    /// when a run first needs them.
-    sure_alpha: Vec<Option<ComputePipeline>>,
-    exact_alpha: Option<ComputePipeline>,
-    unsure_alpha: Option<ComputePipeline>,
-    /// The kernels with the per-pixel rotation (specialization constant
-    /// `ROTATION`), by kernel and alpha round; made when a light first
-    /// needs them.
-    rotated: HashMap<(Kernel, bool), ComputePipeline>,
     /// The light's per-pixel rotation (`pixel_rotation.glsl`; zeros
     /// without one), uniform buffer.
     pub pixel_rotation: GrowBuffer,
@@ -146,15 +132,14 @@ impl Kernel {
 impl SoftOcclusionPass {
     /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let plain = (1..=8)
+            .flat_map(|b| [Kernel::Sure(b), Kernel::Approx(b)])
+            .chain([Kernel::Exact, Kernel::Unsure]);
+        let pipelines = plain
+            .map(|k| Ok(((k, false, false), k.make(ctx, false, false)?)))
+            .collect::<Result<_>>()?;
         Ok(SoftOcclusionPass {
-            sure: (1..=8)
-                .map(|b| Kernel::Sure(b).make(ctx, false, false))
-                .collect::<Result<_>>()?,
-            approx: (1..=8)
-                .map(|b| Kernel::Approx(b).make(ctx, false, false))
-                .collect::<Result<_>>()?,
-            exact: Kernel::Exact.make(ctx, false, false)?,
-            unsure: Kernel::Unsure.make(ctx, false, false)?,
+            pipelines,
             unsure_list: GrowBuffer::storage("unsure_list"),
             counters_before: GrowBuffer::storage("counters_before_occlusion"),
             last_ranges: (0, Vec::new()),
@@ -162,22 +147,19 @@ impl SoftOcclusionPass {
             blocked: GrowBuffer::storage("blocked_masks"),
             light_samples: GrowBuffer::storage_uniform("light_samples"),
             no_table: GrowBuffer::storage("plane_lut_unused"),
-            sure_alpha: (0..8).map(|_| None).collect(),
-            exact_alpha: None,
-            unsure_alpha: None,
-            rotated: HashMap::new(),
             pixel_rotation: GrowBuffer::storage_uniform("pixel_rotation"),
         })
     }
 
-    /// Makes the rotated kernels that `sl` (with a rotation) needs in the
-    /// rounds that run.
-    fn make_rotated_pipelines(
+    /// Makes the kernels that `sl` needs in the rounds that run (the
+    /// alpha round's with `alpha_casters`), with its rotation or without.
+    fn make_pipelines(
         &mut self,
         ctx: &GpuContext,
         sl: &SoftLight,
         alpha_casters: bool,
     ) -> Result<()> {
+        let rotated = sl.rotation.is_some();
         let mut want = vec![(Kernel::of(sl), false)];
         if alpha_casters {
             want.push((Kernel::of(&sl.for_round(CasterRound::Alpha)), true));
@@ -188,51 +170,25 @@ impl SoftOcclusionPass {
         }
         for (kernel, alpha) in want {
             if let std::collections::hash_map::Entry::Vacant(e) =
-                self.rotated.entry((kernel, alpha))
+                self.pipelines.entry((kernel, alpha, rotated))
             {
-                e.insert(kernel.make(ctx, alpha, true)?);
+                e.insert(kernel.make(ctx, alpha, rotated)?);
             }
         }
         Ok(())
     }
 
-    /// The pipeline of `kernel` in the recording's round, with the per-pixel
-    /// rotation when `rotated`.
+    /// The pipeline of `kernel` in the alpha round or not, with the
+    /// per-pixel rotation or not.
     fn pipeline(&self, kernel: Kernel, alpha: bool, rotated: bool) -> Result<&ComputePipeline> {
-        if rotated {
-            return self.rotated.get(&(kernel, alpha)).ok_or_else(not_made);
-        }
-        Ok(match (kernel, alpha) {
-            (Kernel::Sure(b), false) => &self.sure[b - 1],
-            (Kernel::Sure(b), true) => self.sure_alpha[b - 1].as_ref().ok_or_else(not_made)?,
-            (Kernel::Approx(b), false) => &self.approx[b - 1],
-            (Kernel::Approx(_), true) => return Err(not_made()),
-            (Kernel::Exact, false) => &self.exact,
-            (Kernel::Exact, true) => self.exact_alpha.as_ref().ok_or_else(not_made)?,
-            (Kernel::Unsure, false) => &self.unsure,
-            (Kernel::Unsure, true) => self.unsure_alpha.as_ref().ok_or_else(not_made)?,
-        })
-    }
-
-    /// Makes the alpha round's pipelines that `sl`'s mode needs.
-    fn make_alpha_pipelines(&mut self, ctx: &GpuContext, sl: &SoftLight) -> Result<()> {
-        let blocks = sl.blocks();
-        if sl.mode == SoftMode::Lut {
-            if self.sure_alpha[blocks - 1].is_none() {
-                self.sure_alpha[blocks - 1] = Some(Kernel::Sure(blocks).make(ctx, true, false)?);
-            }
-            if self.unsure_alpha.is_none() {
-                self.unsure_alpha = Some(Kernel::Unsure.make(ctx, true, false)?);
-            }
-        } else if self.exact_alpha.is_none() {
-            self.exact_alpha = Some(Kernel::Exact.make(ctx, true, false)?);
-        }
-        Ok(())
+        self.pipelines
+            .get(&(kernel, alpha, rotated))
+            .ok_or_else(not_made)
     }
 
     /// Sizes the buffers and uploads the light samples (before the run's
     /// first recording).
-    /// With `alpha_casters`, makes the alpha round's pipelines too.
+    /// Makes the kernels `sl` needs (the alpha round's with `alpha_casters`).
     pub fn prepare(
         &mut self,
         ctx: &GpuContext,
@@ -240,11 +196,7 @@ impl SoftOcclusionPass {
         sl: &SoftLight,
         alpha_casters: bool,
     ) -> Result<()> {
-        if sl.rotation.is_some() {
-            self.make_rotated_pipelines(ctx, sl, alpha_casters)?;
-        } else if alpha_casters {
-            self.make_alpha_pipelines(ctx, &sl.for_round(CasterRound::Alpha))?;
-        }
+        self.make_pipelines(ctx, sl, alpha_casters)?;
         self.blocked
             .get(ctx, 4 * frame.mask_words * frame.n as u64)?;
         let ubo = self.light_samples.get(ctx, 16 * MAX_SOFT_SAMPLES as u64)?;
@@ -601,7 +553,7 @@ fn planned_len(plan: &[(u32, u32, u64)], start: u32, capacity: u64) -> Option<u3
     (!plan.is_empty()).then_some((end - start).max(1))
 }
 
-/// A round's pipeline that `prepare` did not make.
+/// A pipeline that `prepare` did not make.
 fn not_made() -> crate::Error {
-    crate::Error::InvalidInput("the alpha-tested casters' pipelines were not prepared".into())
+    crate::Error::InvalidInput("an occlusion pipeline was not prepared".into())
 }

@@ -365,38 +365,16 @@ impl Oracle {
         progress: Option<&indicatif::ProgressBar>,
     ) -> Vec<f32> {
         let targets = self.rel_targets(light);
-        let count = targets.len();
-        let mut out = vec![0f32; view.samples.len()];
-        let w = (view.width as usize).max(1);
-        out.par_chunks_mut(w)
-            .zip(view.samples.par_chunks(w))
-            .for_each(|(row_out, row_in)| {
-                let mut hint = u32::MAX;
-                let mut traced = 0;
-                for (o, s) in row_out.iter_mut().zip(row_in) {
-                    let Some(s) = s else { continue };
-                    let Some(rs) = self.rel_sample(s) else {
-                        continue;
-                    };
-                    let visible = targets
-                        .iter()
-                        .filter(|t| self.shadow_query(&rs, t, &mut hint, &mut traced))
-                        .count();
-                    if count > 0 {
-                        *o = (visible as f64 / count as f64) as f32;
-                    }
-                }
-                self.shadow_rays.fetch_add(traced, Ordering::Relaxed);
-                if let Some(pb) = progress {
-                    pb.inc(1);
-                }
-            });
-        out
+        self.visible_fractions(view, targets.len(), progress, |rs, _, hint, traced| {
+            let visible = |t: &&RelTarget| self.shadow_query(rs, t, hint, traced);
+            targets.iter().filter(visible).count()
+        })
     }
 
     /// [`Oracle::visibility`] with a per-pixel rotation: the pixel at
     /// index `i` of `view.samples` sees each of `light`'s samples turned
-    /// by [`PixelRotation::turn`](crate::light::PixelRotation::turn)`(l, i)` (the GPU's angles, in f64).
+    /// by [`PixelRotation::turn`](crate::light::PixelRotation::turn)`(l, i)`
+    /// (the GPU's angles, in f64).
     pub fn visibility_rotated(
         &self,
         view: &ViewSamples,
@@ -405,7 +383,26 @@ impl Oracle {
         progress: Option<&indicatif::ProgressBar>,
     ) -> Vec<f32> {
         let table = crate::light::pixel_rotation_table();
-        let count = light.len();
+        self.visible_fractions(view, light.len(), progress, |rs, pixel, hint, traced| {
+            let turned = light
+                .iter()
+                .map(|&l| self.rel_point(rotation.turn(l, pixel, &table)));
+            turned
+                .filter(|t| self.shadow_query(rs, t, hint, traced))
+                .count()
+        })
+    }
+
+    /// Per pixel, `visible(sample, pixel, hint, traced)` (the count of its
+    /// `count` light samples it sees) over `count`, in parallel rows; 0.0
+    /// where there is no view sample.
+    fn visible_fractions(
+        &self,
+        view: &ViewSamples,
+        count: usize,
+        progress: Option<&indicatif::ProgressBar>,
+        visible: impl Fn(&RelSample, u32, &mut u32, &mut u64) -> usize + Sync,
+    ) -> Vec<f32> {
         let mut out = vec![0f32; view.samples.len()];
         let w = (view.width as usize).max(1);
         out.par_chunks_mut(w)
@@ -419,14 +416,9 @@ impl Oracle {
                     let Some(rs) = self.rel_sample(s) else {
                         continue;
                     };
-                    let pixel = (row * w + col) as u32;
-                    let visible = light
-                        .iter()
-                        .map(|&l| self.rel_point(rotation.turn(l, pixel, &table)))
-                        .filter(|t| self.shadow_query(&rs, t, &mut hint, &mut traced))
-                        .count();
+                    let seen = visible(&rs, (row * w + col) as u32, &mut hint, &mut traced);
                     if count > 0 {
-                        *o = (visible as f64 / count as f64) as f32;
+                        *o = (seen as f64 / count as f64) as f32;
                     }
                 }
                 self.shadow_rays.fetch_add(traced, Ordering::Relaxed);

@@ -49,16 +49,13 @@ pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Resul
     for (k, light) in desc.lights.iter().enumerate() {
         let samples = light.light_samples();
         let t = Instant::now();
+        // (A textured light is never turned: Light::validate.)
         let rotation = light.pixel_rotation(desc.camera.eye);
-        let (vis, ev, rgb) = match (light.sample_colors(), rotation, &samples) {
-            (Some(colors), _, _) => oracle_coloured_light(&oracle, &view, &samples, &colors),
-            (None, Some(rot), LightSamples::Positions(points)) => {
-                let (vis, ev) =
-                    oracle_rotated_light(&oracle, &view, points, &rot, options.progress);
-                (vis, ev, None)
-            }
-            _ => {
-                let (vis, ev) = oracle_light(&oracle, &view, &samples, k, options.progress);
+        let (vis, ev, rgb) = match light.sample_colors() {
+            Some(colors) => oracle_coloured_light(&oracle, &view, &samples, &colors),
+            None => {
+                let rot = rotation.as_ref();
+                let (vis, ev) = oracle_light(&oracle, &view, &samples, rot, k, options.progress);
                 (vis, ev, None)
             }
         };
@@ -127,46 +124,32 @@ pub fn render_reference(desc: &SceneDescription, options: FrameOptions) -> Resul
 }
 
 /// One light's visibility from the oracle, with the "evaluated" flags (a
-/// sample facing away from the whole light is decided without shadow rays).
+/// sample facing away from the whole light is decided without shadow rays);
+/// with a `rotation`, each pixel sees the samples turned by its angle.
 fn oracle_light(
     oracle: &Oracle,
     view: &ViewSamples,
     samples: &LightSamples,
+    rotation: Option<&crate::light::PixelRotation>,
     k: usize,
     progress: bool,
 ) -> (Vec<f32>, Vec<bool>) {
+    let turned = if rotation.is_some() {
+        ", turned per pixel"
+    } else {
+        ""
+    };
     let pb = progress_bar(
         view.height as u64,
-        &format!("oracle light {k} ({} samples)", samples.len()),
+        &format!("oracle light {k} ({} samples{turned})", samples.len()),
         progress,
     );
-    let vis = oracle.visibility(view, samples, pb.as_ref());
-    if let Some(pb) = pb {
-        pb.finish_and_clear();
-    }
-    let evaluated = view
-        .samples
-        .iter()
-        .map(|s| s.is_some_and(|s| faces_light(s.position, s.normal, samples)))
-        .collect();
-    (vis, evaluated)
-}
-
-/// [`oracle_light`] for a light with a per-pixel rotation: each pixel's
-/// samples turned by its angle.
-fn oracle_rotated_light(
-    oracle: &Oracle,
-    view: &ViewSamples,
-    points: &[glam::DVec3],
-    rotation: &crate::light::PixelRotation,
-    progress: bool,
-) -> (Vec<f32>, Vec<bool>) {
-    let pb = progress_bar(
-        view.height as u64,
-        &format!("oracle light ({} samples, turned per pixel)", points.len()),
-        progress,
-    );
-    let vis = oracle.visibility_rotated(view, points, rotation, pb.as_ref());
+    let vis = match (rotation, samples) {
+        (Some(rot), LightSamples::Positions(points)) => {
+            oracle.visibility_rotated(view, points, rot, pb.as_ref())
+        }
+        _ => oracle.visibility(view, samples, pb.as_ref()),
+    };
     if let Some(pb) = pb {
         pb.finish_and_clear();
     }
@@ -176,11 +159,12 @@ fn oracle_rotated_light(
         .iter()
         .enumerate()
         .map(|(i, s)| {
-            s.is_some_and(|s| {
-                let turned = points.iter().map(|&l| rotation.turn(l, i as u32, &table));
-                turned
-                    .into_iter()
-                    .any(|l| s.normal.dot(l - s.position) > 0.0)
+            s.is_some_and(|s| match (rotation, samples) {
+                (Some(rot), LightSamples::Positions(points)) => points
+                    .iter()
+                    .map(|&l| rot.turn(l, i as u32, &table))
+                    .any(|l| s.normal.dot(l - s.position) > 0.0),
+                _ => faces_light(s.position, s.normal, samples),
             })
         })
         .collect();

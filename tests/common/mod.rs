@@ -34,6 +34,35 @@ pub fn shared_asset_scenes() -> Vec<SceneDescription> {
     out
 }
 
+/// Mask words that differ between two runs of the same samples.
+pub fn words_differ(a: &[u32], b: &[u32]) -> usize {
+    assert_eq!(a.len(), b.len(), "the runs' masks differ in length");
+    a.iter().zip(b).filter(|(x, y)| x != y).count()
+}
+
+/// `light`'s soft shadows of `view` in `mode` (default settings otherwise).
+pub fn soft_in_mode(
+    engine: &mut alias_free_shadows::render::Engine,
+    desc: &SceneDescription,
+    view: &ViewSamples,
+    light: &alias_free_shadows::light::Light,
+    mode: alias_free_shadows::scene::file::SoftMode,
+) -> alias_free_shadows::render::SoftShadowResult {
+    let settings = alias_free_shadows::scene::file::ShadowSettings {
+        mode,
+        ..Default::default()
+    };
+    engine
+        .soft_shadows(
+            &desc.scene,
+            desc.camera.eye,
+            &view.samples,
+            light,
+            &settings,
+        )
+        .unwrap()
+}
+
 /// The engine's view samples as the oracle sees them: camera-relative f32
 /// positions and normals converted back, exactly.
 pub fn engine_view_samples(oracle: &Oracle, desc: &SceneDescription) -> ViewSamples {
