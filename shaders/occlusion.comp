@@ -39,7 +39,10 @@ void main() {
     uint unit = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     uint tiles_per_face = pc.more.z;
     uint res = pc.sizes.z;
-    if (unit >= pc.more.w) {
+    // more.w: the units the host read back, or ~0 when a caller's command
+    // buffer dispatches them indirectly (record_args.comp): then the count
+    // is the scan's total.
+    if (unit >= min(pc.more.w, unit_offsets[tiles_per_face * pc.sizes.w])) {
         return;
     }
     // The tile: the last one whose first unit is at most `unit` (the

@@ -35,7 +35,9 @@ OcclusionUnit occlusion_unit() {
     u.face = 0u;
     u.tile = 0u;
     u.texel = uvec2(0u);
-    if (unit >= pc.more.w) {
+    // more.w: the units the host read back, or ~0 when a caller's command
+    // buffer dispatches them indirectly (record_args.comp).
+    if (unit >= min(pc.more.w, unit_offsets[tiles_per_face * pc.sizes.w])) {
         return u;
     }
     // The tile: the last one whose first unit is at most `unit`.

@@ -69,7 +69,11 @@ void main() {
                 atomicAdd(tile_counts[tile], 1u);
             } else {
                 uint slot = tile_offsets[tile] + atomicAdd(tile_counts[tile], 1u);
-                tile_pairs[slot] = i;
+                // A caller's recording binds a list of fixed capacity: past
+                // it, record_args.comp reports the overflow and runs no unit.
+                if (slot < uint(tile_pairs.length())) {
+                    tile_pairs[slot] = i;
+                }
             }
         }
     }

@@ -26,3 +26,4 @@ pub mod scan;
 pub mod soft_occlusion;
 pub mod texel_lists;
 pub mod tile_bin;
+pub mod visibility_out;

@@ -12,6 +12,11 @@ use crate::gpu::soft_light::{SoftLight, SoftMode};
 use crate::vulkan::{BufferSlice, CommandRecorder, GpuContext};
 use crate::Result;
 
+/// [`LightFrame::units`] of a caller's recording: the occlusion passes
+/// take the count from the GPU (`min(more.w, unit_offsets[tiles])` in the
+/// shaders) and dispatch indirectly.
+pub const UNITS_INDIRECT: u32 = u32::MAX;
+
 /// Tile side in texels (`TILE` in `shadow_common.glsl`).
 pub const TILE: u32 = 8;
 
@@ -199,6 +204,11 @@ pub struct Recording<'a> {
     pub frame: LightFrame,
     /// The casters the passes now take (also their timings' prefix).
     pub round: CasterRound,
+    /// A recording into a caller's command buffer
+    /// ([`crate::render::Engine::record_frame`]): nothing is submitted or read back,
+    /// the occlusion passes run as many units as the GPU counted (indirect
+    /// dispatches), and the light's status words go here.
+    pub for_caller: Option<BufferSlice<'a>>,
 }
 
 impl<'a> Recording<'a> {
@@ -222,7 +232,35 @@ impl<'a> Recording<'a> {
             inputs,
             frame,
             round: CasterRound::All,
+            for_caller: None,
         })
+    }
+
+    /// Starts recording the run of `frame` over `inputs` into a caller's
+    /// command buffer (`cmd`, [`CommandRecorder::for_caller`]); the light's
+    /// status words go to `status`. Passes are not timed.
+    pub fn for_caller(
+        ctx: &'a GpuContext,
+        clock: &'a mut PassClock,
+        inputs: LightInputs<'a>,
+        frame: LightFrame,
+        (cmd, status): (CommandRecorder, BufferSlice<'a>),
+    ) -> Self {
+        Recording {
+            ctx,
+            clock,
+            cmd,
+            inputs,
+            frame,
+            round: CasterRound::All,
+            for_caller: Some(status),
+        }
+    }
+
+    /// Whether the occlusion passes dispatch the units the GPU counted
+    /// (a caller's recording) rather than the host's count.
+    pub fn units_indirect(&self) -> bool {
+        self.frame.units() == UNITS_INDIRECT
     }
 
     /// Records `f` as the pass `name` (with the frame's push constants).
@@ -232,6 +270,9 @@ impl<'a> Recording<'a> {
         f: impl FnOnce(&mut CommandRecorder, &[u8]) -> Result<()>,
     ) -> Result<()> {
         let push = self.frame.push;
+        if self.for_caller.is_some() {
+            return f(&mut self.cmd, bytemuck::bytes_of(&push));
+        }
         let name = format!("{}{name}", self.round.prefix());
         self.clock.time(self.ctx, &mut self.cmd, &name, |rec| {
             f(rec, bytemuck::bytes_of(&push))
@@ -240,6 +281,11 @@ impl<'a> Recording<'a> {
 
     /// Submits what is recorded, waits for it, and starts a new command buffer.
     pub fn submit(&mut self) -> Result<()> {
+        if self.for_caller.is_some() {
+            return Err(crate::Error::Vulkan(
+                "internal: a pass tried to submit a caller's recording".into(),
+            ));
+        }
         let done = std::mem::replace(&mut self.cmd, self.ctx.begin()?);
         self.ctx.submit_and_wait(done)
     }

@@ -8,7 +8,7 @@
 use crate::cpu::light_view::LightView;
 use crate::gpu::casters::CasterPass;
 use crate::gpu::clusters::ClusterPass;
-use crate::gpu::light_frame::{CasterRound, Recording};
+use crate::gpu::light_frame::{CasterRound, Recording, UNITS_INDIRECT};
 use crate::gpu::light_frame::{LightFrame, LightInputs};
 use crate::gpu::light_view::LightViewPass;
 use crate::gpu::occlusion::OcclusionPass;
@@ -17,11 +17,14 @@ use crate::gpu::plane_lut::PlaneLutPass;
 use crate::gpu::resolve::ResolvePass;
 use crate::gpu::shared::counter;
 use crate::gpu::soft_light::SoftLight;
+use crate::gpu::soft_light::SoftMode;
 use crate::gpu::soft_occlusion::SoftOcclusionPass;
 use crate::gpu::texel_lists::TexelListPass;
 use crate::gpu::tile_bin::TileBinPass;
-use crate::vulkan::{Allocations, Barrier, GpuContext, GrowBuffer, PassTiming};
-use crate::Result;
+use crate::vulkan::{
+    vk, Allocations, Barrier, BufferSlice, CommandRecorder, GpuContext, GrowBuffer, PassTiming,
+};
+use crate::{Error, Result};
 
 /// What one run of a light's passes returns.
 #[derive(Clone, Debug)]
@@ -144,6 +147,100 @@ impl LightPasses {
             None => false,
         };
         self.prepare(ctx, &frame, soft, inputs.alpha_casters)?;
+        if let Some(sl) = soft {
+            self.soft_occlusion.upload(ctx, sl)?;
+        }
+        let (stages, clock) = self.stages();
+        let r = &mut Recording::new(ctx, clock, *inputs, frame)?;
+        let carried = match record_light(stages, r, soft)? {
+            Ok(carried) => carried,
+            Err(ran) => return Ok(ran),
+        };
+        r.submit()?;
+        ctx.check_validation()?;
+        let mut out = self.read_output(ctx, &frame, inputs, soft, lut_built)?;
+        for (c, k) in out.counters.iter_mut().zip(carried) {
+            *c = c.saturating_add(k);
+        }
+        out.allocations = ctx.allocations() - before;
+        Ok(Ran::Done(Box::new(out)))
+    }
+
+    /// Sizes every buffer a caller's recording of `light` over `inputs`
+    /// binds ([`LightPasses::record_for_caller`]), with a binned-pair list
+    /// of `pair_capacity` entries. Call it for every light of a
+    /// submission before recording any: a recording never allocates.
+    pub fn prepare_for_caller(
+        &mut self,
+        ctx: &GpuContext,
+        inputs: &LightInputs,
+        (light, resolution, soft): (&LightView, u32, Option<&SoftLight>),
+        pair_capacity: u32,
+    ) -> Result<()> {
+        let frame = LightFrame::new(inputs, light, resolution, soft);
+        self.prepare(ctx, &frame, soft, inputs.alpha_casters)?;
+        self.tile_bin
+            .prepare_for_caller(ctx, &frame, pair_capacity)?;
+        self.texel_lists.reserve_scan(&frame)?;
+        self.occlusion.shadowed.get(ctx, 4 * frame.n as u64)?;
+        Ok(())
+    }
+
+    /// Records the passes of `light` over `inputs` into a caller's
+    /// command buffer (`cmd`) without submitting or reading anything back:
+    /// the list of binned pairs has the capacity
+    /// [`LightPasses::prepare_for_caller`] gave it, the occlusion passes
+    /// dispatch the units the GPU counted, and the light's status words go
+    /// to `status` (`record_args.comp`). Soft shadows in exact mode only.
+    /// The result stays in the resolve pass's `result` buffer.
+    pub fn record_for_caller(
+        &mut self,
+        ctx: &GpuContext,
+        (cmd, status): (CommandRecorder, BufferSlice),
+        inputs: &LightInputs,
+        (light, resolution, soft): (&LightView, u32, Option<&SoftLight>),
+    ) -> Result<CommandRecorder> {
+        if let Some(sl) = soft.filter(|sl| sl.mode != SoftMode::Exact) {
+            return Err(Error::InvalidInput(format!(
+                "a recording into a caller's command buffer computes soft shadows in exact \
+                 mode only (this light asks for {:?} mode, which sizes its work on the host)",
+                sl.mode
+            )));
+        }
+        let frame = LightFrame::new(inputs, light, resolution, soft);
+        let before = ctx.allocations();
+        self.prepare(ctx, &frame, soft, inputs.alpha_casters)?;
+        let grew = |now: Allocations| {
+            Error::InvalidInput(format!(
+                "{:?}: a buffer had to grow while recording for a caller: prepare every light \
+                 of the submission first",
+                now - before
+            ))
+        };
+        if ctx.allocations() != before {
+            return Err(grew(ctx.allocations()));
+        }
+        let (stages, clock) = self.stages();
+        let r = &mut Recording::for_caller(ctx, clock, *inputs, frame, (cmd, status));
+        // What the last light's passes read, this one's clears rewrite.
+        r.cmd.barrier(Barrier::ComputeToTransfer);
+        if let Some(sl) = soft {
+            stages.soft_occlusion.record_upload(&mut r.cmd, sl)?;
+        }
+        if let Err(Ran::TooManyPairs { .. }) = record_light(stages, r, soft)? {
+            return Err(Error::Vulkan(
+                "internal: a caller's recording asked for smaller batches".into(),
+            ));
+        }
+        if ctx.allocations() != before {
+            return Err(grew(ctx.allocations()));
+        }
+        let none = CommandRecorder::for_caller(ctx.device(), vk::CommandBuffer::null());
+        Ok(std::mem::replace(&mut r.cmd, none))
+    }
+
+    /// The passes as [`record_light`] takes them, and the clock apart.
+    fn stages(&mut self) -> (Stages<'_>, &mut PassClock) {
         let LightPasses {
             light_view,
             texel_lists,
@@ -157,57 +254,19 @@ impl LightPasses {
             counters,
             clock,
         } = self;
-        let r = &mut Recording::new(ctx, clock, *inputs, frame)?;
-        r.cmd.fill_buffer(counters.slice(), 0)?;
-        texel_lists.record_clears(&mut r.cmd)?;
-        r.cmd.barrier(Barrier::TransferToCompute);
-
-        // §4.3: the light's frusta fitted to the view samples; §3.1: the
-        // per-light-texel lists of view samples (count, scan, scatter).
-        light_view.record(r)?;
-        texel_lists.record(r, &light_view.faces)?;
-        // Sintorn et al. 2014: each tile's view samples as one box (soft).
-        clusters.record(r, texel_lists, soft.is_some())?;
-        // §3.2-§4.2: the casters against the samples, in one round; or
-        // two when some are alpha-tested: the opaque ones, then those with
-        // their alpha tests, ORed into what the first blocked.
-        let mut carried = [0u32; counter::COUNT];
-        for (k, &round) in CasterRound::of(inputs).iter().enumerate() {
-            if k > 0 {
-                carry_counters(r, counters, &mut carried)?;
-            }
-            r.set_round(round);
-            let round_light = soft.map(|sl| sl.for_round(round));
-            let samples = (&*light_view, &*texel_lists, &*clusters, &*plane_lut);
-            let tests = (
-                &mut *casters,
-                &mut *tile_bin,
-                &mut *occlusion,
-                &mut *soft_occlusion,
-            );
-            let first = k == 0;
-            if let Some(ran) = cast(r, samples, tests, counters, round_light.as_deref(), first)? {
-                return Ok(ran);
-            }
-        }
-        // Visibility = visible light samples / light samples (no round's:
-        // its timing has no round prefix).
-        r.set_round(CasterRound::All);
-        match soft {
-            None => resolve.record_hard(r, texel_lists, &occlusion.shadowed)?,
-            Some(sl) => {
-                let rotated = sl.rotation.is_some();
-                resolve.record_soft(r, texel_lists, soft_occlusion, rotated)?
-            }
-        }
-        r.submit()?;
-        ctx.check_validation()?;
-        let mut out = self.read_output(ctx, &frame, inputs, soft, lut_built)?;
-        for (c, k) in out.counters.iter_mut().zip(carried) {
-            *c = c.saturating_add(k);
-        }
-        out.allocations = ctx.allocations() - before;
-        Ok(Ran::Done(Box::new(out)))
+        let stages = Stages {
+            light_view,
+            texel_lists,
+            clusters,
+            casters,
+            tile_bin,
+            occlusion,
+            plane_lut,
+            soft_occlusion,
+            resolve,
+            counters,
+        };
+        (stages, clock)
     }
 
     /// Sizes every pass's buffers for `frame` (uploads the fit keys and the
@@ -305,6 +364,87 @@ impl LightPasses {
     }
 }
 
+/// Every pass of a light, borrowed apart from the clock that the
+/// recording holds.
+struct Stages<'p> {
+    light_view: &'p mut LightViewPass,
+    texel_lists: &'p mut TexelListPass,
+    clusters: &'p mut ClusterPass,
+    casters: &'p mut CasterPass,
+    tile_bin: &'p mut TileBinPass,
+    occlusion: &'p mut OcclusionPass,
+    plane_lut: &'p mut PlaneLutPass,
+    soft_occlusion: &'p mut SoftOcclusionPass,
+    resolve: &'p mut ResolvePass,
+    counters: &'p mut GrowBuffer,
+}
+
+/// The passes of one light in the paper's order, recorded into `r`: the
+/// page to read against §3 and §4. Returns the counters of the rounds
+/// before the last (to add to the last's), or the batching a run needs.
+fn record_light(
+    stages: Stages,
+    r: &mut Recording,
+    soft: Option<&SoftLight>,
+) -> Result<std::result::Result<[u32; counter::COUNT], Ran>> {
+    let Stages {
+        light_view,
+        texel_lists,
+        clusters,
+        casters,
+        tile_bin,
+        occlusion,
+        plane_lut,
+        soft_occlusion,
+        resolve,
+        counters,
+    } = stages;
+    let inputs = r.inputs;
+    r.cmd.fill_buffer(counters.slice(), 0)?;
+    texel_lists.record_clears(&mut r.cmd)?;
+    r.cmd.barrier(Barrier::TransferToCompute);
+
+    // §4.3: the light's frusta fitted to the view samples; §3.1: the
+    // per-light-texel lists of view samples (count, scan, scatter).
+    light_view.record(r)?;
+    texel_lists.record(r, &light_view.faces)?;
+    // Sintorn et al. 2014: each tile's view samples as one box (soft).
+    clusters.record(r, texel_lists, soft.is_some())?;
+    // §3.2-§4.2: the casters against the samples, in one round; or
+    // two when some are alpha-tested: the opaque ones, then those with
+    // their alpha tests, ORed into what the first blocked.
+    let mut carried = [0u32; counter::COUNT];
+    for (k, &round) in CasterRound::of(&inputs).iter().enumerate() {
+        if k > 0 {
+            carry_counters(r, counters, &mut carried)?;
+        }
+        r.set_round(round);
+        let round_light = soft.map(|sl| sl.for_round(round));
+        let samples = (&*light_view, &*texel_lists, &*clusters, &*plane_lut);
+        let tests = (
+            &mut *casters,
+            &mut *tile_bin,
+            &mut *occlusion,
+            &mut *soft_occlusion,
+        );
+        let first = k == 0;
+        if let Some(ran) = cast(r, samples, tests, counters, round_light.as_deref(), first)? {
+            return Ok(Err(ran));
+        }
+    }
+    // Visibility = visible light samples / light samples (no round's:
+    // its timing has no round prefix).
+    r.set_round(CasterRound::All);
+    match soft {
+        None => resolve.record_hard(r, texel_lists, &occlusion.shadowed)?,
+        Some(sl) => {
+            let rotated = sl.rotation.is_some();
+            resolve.record_soft(r, texel_lists, soft_occlusion, rotated)?
+        }
+    }
+    Ok(Ok(carried))
+}
+
 /// One round of casters: each caster's planes and its projection or
 /// influence region (§3.3, §4.1), conservatively rasterized and binned per
 /// tile, less the tiles whose box it cannot shadow (§3.2); then every
@@ -335,17 +475,25 @@ fn cast(
     casters.record(r, &light_view.faces, counters)?;
     let bins = (&*casters, texel_lists, clusters);
     tile_bin.record_count(r, bins, counters, soft)?;
-    r.submit()?;
-    // Only now is the number of binned pairs known: past the binding
-    // limit, the triangles run again in smaller batches.
-    let totals = tile_bin.totals(r.ctx, &r.frame)?;
-    let binned_bytes = 4 * totals.pairs as u64;
-    let max_range = r.ctx.info().limits.max_storage_buffer_range as u64;
-    if binned_bytes > max_range && r.frame.nt > 1 {
-        return Ok(Some(Ran::TooManyPairs { binned_bytes }));
+    if r.for_caller.is_some() {
+        // A caller's recording cannot read the count back: the list has a
+        // fixed capacity and the GPU sizes the occlusion dispatches.
+        tile_bin.record_scatter(r, None, bins, counters)?;
+        tile_bin.record_args(r)?;
+        r.frame.set_units(UNITS_INDIRECT);
+    } else {
+        r.submit()?;
+        // Only now is the number of binned pairs known: past the binding
+        // limit, the triangles run again in smaller batches.
+        let totals = tile_bin.totals(r.ctx, &r.frame)?;
+        let binned_bytes = 4 * totals.pairs as u64;
+        let max_range = r.ctx.info().limits.max_storage_buffer_range as u64;
+        if binned_bytes > max_range && r.frame.nt > 1 {
+            return Ok(Some(Ran::TooManyPairs { binned_bytes }));
+        }
+        tile_bin.record_scatter(r, Some(totals), bins, counters)?;
+        r.frame.set_units(totals.units);
     }
-    tile_bin.record_scatter(r, totals, bins, counters)?;
-    r.frame.set_units(totals.units);
     match soft {
         None => occlusion.record(r, (texel_lists, casters, tile_bin), counters, first)?,
         Some(sl) => {
@@ -363,6 +511,14 @@ fn carry_counters(
     counters: &GrowBuffer,
     carried: &mut [u32; counter::COUNT],
 ) -> Result<()> {
+    if r.for_caller.is_some() {
+        // Nothing is read back from a caller's recording: the first
+        // round's counts are dropped.
+        r.cmd.barrier(Barrier::ComputeToTransfer);
+        r.cmd.fill_buffer(counters.slice(), 0)?;
+        r.cmd.barrier(Barrier::TransferToCompute);
+        return Ok(());
+    }
     r.submit()?;
     let c: Vec<u32> = r
         .ctx

@@ -47,22 +47,26 @@ impl LightViewPass {
         })
     }
 
-    /// Sizes the buffers and resets the fit keys (an upload: before the
-    /// run's first recording).
+    /// Sizes the buffers.
     pub fn prepare(&mut self, ctx: &GpuContext) -> Result<()> {
-        let mut fit_init = [0u32; 48];
-        for f in 0..6 {
-            fit_init[f * 8] = u32::MAX;
-            fit_init[f * 8 + 1] = u32::MAX;
-        }
-        let keys = self.fit_keys.get(ctx, 4 * 8 * 6)?;
-        ctx.upload_staged(keys, 0, &fit_init)?;
+        self.fit_keys.get(ctx, 4 * 8 * 6)?;
         self.faces.get(ctx, 128 * 6)?;
         Ok(())
     }
 
     /// Records the fit of every face's window to the run's view samples.
     pub fn record(&self, r: &mut Recording) -> Result<()> {
+        // The fit keys start empty: recorded, not uploaded, so that lights
+        // recorded into one command buffer each start afresh.
+        let mut fit_init = [0u32; 48];
+        for f in 0..6 {
+            fit_init[f * 8] = u32::MAX;
+            fit_init[f * 8 + 1] = u32::MAX;
+        }
+        r.cmd.barrier(Barrier::ComputeToTransfer);
+        r.cmd
+            .update_buffer(self.fit_keys.buffer(), 0, bytemuck::cast_slice(&fit_init))?;
+        r.cmd.barrier(Barrier::TransferToCompute);
         let (samples, n) = (r.inputs.samples, r.frame.n);
         r.pass("light_fit", |rec, pc| {
             let keys = storage(&self.fit_keys);

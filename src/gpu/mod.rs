@@ -47,6 +47,7 @@ pub mod soft_occlusion;
 pub mod texel_lists;
 pub mod tile_bin;
 pub mod view_samples;
+pub mod visibility_out;
 
 pub use light_passes::{ShadowOutput, SoftOutput};
 pub use shadow_pipeline::{gpu_inputs, ShadowPipeline};

@@ -5,7 +5,7 @@
 //! [`crate::cpu::occlusion`].
 
 use crate::gpu::dispatch::{groups_2d, storage, RGBA32UI};
-use crate::gpu::light_frame::{CasterRound, Recording};
+use crate::gpu::light_frame::{CasterRound, Recording, UNITS_INDIRECT};
 use crate::gpu::shaders;
 use crate::gpu::shared::LightPush;
 use crate::gpu::{casters::CasterPass, texel_lists::TexelListPass, tile_bin::TileBinPass};
@@ -84,7 +84,11 @@ impl OcclusionPass {
                 textures,
                 alphas,
             ];
-            rec.dispatch(pipeline, &bindings, pc, groups_2d(units.max(1)))?;
+            if units == UNITS_INDIRECT {
+                rec.dispatch_indirect(pipeline, &bindings, pc, bins.dispatch_args.buffer())?;
+            } else {
+                rec.dispatch(pipeline, &bindings, pc, groups_2d(units.max(1)))?;
+            }
             rec.barrier(Barrier::ComputeToCompute);
             Ok(())
         })

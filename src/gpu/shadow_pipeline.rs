@@ -11,7 +11,7 @@ use crate::gpu::light_frame::LightInputs;
 use crate::gpu::light_passes::{LightPasses, ShadowOutput};
 use crate::gpu::shared::{GpuTriangle, GpuViewSample};
 use crate::gpu::soft_light::SoftLight;
-use crate::vulkan::{Buffer, GpuContext, GrowBuffer};
+use crate::vulkan::{Buffer, BufferSlice, CommandRecorder, GpuContext, GrowBuffer};
 use crate::{Error, Result};
 
 /// The shadow passes of every light: pipelines made once, buffers kept and
@@ -112,15 +112,8 @@ impl ShadowPipeline {
         resolution: u32,
         soft: Option<&SoftLight>,
     ) -> Result<ShadowOutput> {
-        let inputs = LightInputs {
-            samples: samples.whole(),
-            n: count(n, "view samples")?,
-            triangles: triangles.whole(),
-            nt: count(nt, "triangles")?,
-            triangle_base: 0,
-            alpha: self.alpha.inputs(),
-            alpha_casters: self.alpha.present(),
-        };
+        let (n, nt) = (count(n, "view samples")?, count(nt, "triangles")?);
+        let inputs = whole_inputs(&self.alpha, (samples, n), (triangles, nt));
         run_checked(
             &mut self.passes,
             &mut self.batches,
@@ -130,6 +123,40 @@ impl ShadowPipeline {
             resolution,
             soft,
         )
+    }
+
+    /// [`LightPasses::prepare_for_caller`] on `n` view samples in
+    /// `samples` and `nt` triangles in `triangles` (with the alpha tables
+    /// of [`ShadowPipeline::set_alpha`]).
+    pub fn prepare_for_caller(
+        &mut self,
+        ctx: &GpuContext,
+        (samples, n): (&Buffer, u32),
+        (triangles, nt): (&Buffer, u32),
+        light: (&LightView, u32, Option<&SoftLight>),
+        pair_capacity: u32,
+    ) -> Result<()> {
+        let inputs = whole_inputs(&self.alpha, (samples, n), (triangles, nt));
+        let frame = crate::gpu::light_frame::LightFrame::new(&inputs, light.0, light.1, light.2);
+        self.passes.texel_lists.check(&frame)?;
+        self.passes
+            .prepare_for_caller(ctx, &inputs, light, pair_capacity)
+    }
+
+    /// [`LightPasses::record_for_caller`] on the inputs of
+    /// [`ShadowPipeline::prepare_for_caller`]; the light's result stays in
+    /// the resolve pass's buffer.
+    pub fn record_for_caller(
+        &mut self,
+        ctx: &GpuContext,
+        (cmd, status): (CommandRecorder, BufferSlice),
+        (samples, n): (&Buffer, u32),
+        (triangles, nt): (&Buffer, u32),
+        light: (&LightView, u32, Option<&SoftLight>),
+    ) -> Result<CommandRecorder> {
+        let inputs = whole_inputs(&self.alpha, (samples, n), (triangles, nt));
+        self.passes
+            .record_for_caller(ctx, (cmd, status), &inputs, light)
     }
 
     /// The plane look-up texture of `light` as the GPU builds it (for the
@@ -179,6 +206,24 @@ impl ShadowPipeline {
     /// tests that compare a pass's buffers with its CPU twin).
     pub fn passes(&self) -> &LightPasses {
         &self.passes
+    }
+}
+
+/// The inputs of a run over the whole of `samples` (`n` view samples) and
+/// `triangles` (`nt`), with `alpha`'s tables.
+fn whole_inputs<'a>(
+    alpha: &'a AlphaBuffers,
+    (samples, n): (&'a Buffer, u32),
+    (triangles, nt): (&'a Buffer, u32),
+) -> LightInputs<'a> {
+    LightInputs {
+        samples: samples.whole(),
+        n,
+        triangles: triangles.whole(),
+        nt,
+        triangle_base: 0,
+        alpha: alpha.inputs(),
+        alpha_casters: alpha.present(),
     }
 }
 

@@ -13,15 +13,15 @@
 use crate::gpu::clusters::ClusterPass;
 use crate::gpu::dispatch::{groups, groups_2d, storage, RGBA32UI};
 use crate::gpu::light_frame::LightFrame;
-use crate::gpu::light_frame::{CasterRound, Recording};
+use crate::gpu::light_frame::{CasterRound, Recording, UNITS_INDIRECT};
 use crate::gpu::shaders;
 use crate::gpu::shared::{counter, LightPush};
 use crate::gpu::soft_light::{SoftLight, SoftMode, MAX_SOFT_SAMPLES};
 use crate::gpu::tile_bin::{sure_pair_chunk, SOFT_PAIR_CHUNK};
 use crate::gpu::{casters::CasterPass, texel_lists::TexelListPass, tile_bin::TileBinPass};
 use crate::vulkan::{
-    vk, Barrier, Binding, Buffer, ComputePipeline, ComputePipelineDesc, DescriptorKind, GpuContext,
-    GrowBuffer,
+    vk, Barrier, Binding, Buffer, CommandRecorder, ComputePipeline, ComputePipelineDesc,
+    DescriptorKind, GpuContext, GrowBuffer,
 };
 use crate::Result;
 use std::collections::HashMap;
@@ -199,11 +199,8 @@ impl SoftOcclusionPass {
         self.make_pipelines(ctx, sl, alpha_casters)?;
         self.blocked
             .get(ctx, 4 * frame.mask_words * frame.n as u64)?;
-        let ubo = self.light_samples.get(ctx, 16 * MAX_SOFT_SAMPLES as u64)?;
-        let v: Vec<[f32; 4]> = sl.samples.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect();
-        ctx.upload_staged(ubo, 0, &v)?;
-        let rotation = self.pixel_rotation.get(ctx, 16 * (3 + 128))?;
-        ctx.upload_staged(rotation, 0, &pixel_rotation_block(sl))?;
+        self.light_samples.get(ctx, 16 * MAX_SOFT_SAMPLES as u64)?;
+        self.pixel_rotation.get(ctx, 16 * (3 + 128))?;
         self.no_table.get(ctx, 16)?;
         self.counters_before.get(ctx, 4 * counter::COUNT as u64)?;
         // The unsure list (the units run in ranges whose entries fit it).
@@ -212,6 +209,33 @@ impl SoftOcclusionPass {
         } else {
             self.unsure_list.get(ctx, 16)?;
         }
+        Ok(())
+    }
+
+    /// Uploads the light samples and the per-pixel rotation of `sl` (after
+    /// [`SoftOcclusionPass::prepare`]), waiting until done.
+    pub fn upload(&self, ctx: &GpuContext, sl: &SoftLight) -> Result<()> {
+        let (samples, rotation) = light_words(sl);
+        ctx.upload_staged(self.light_samples.buffer(), 0, &samples)?;
+        ctx.upload_staged(self.pixel_rotation.buffer(), 0, &rotation)
+    }
+
+    /// The same uploads recorded into `rec` (a caller's recording, where
+    /// several lights share one submission), before the passes that read
+    /// them.
+    pub fn record_upload(&self, rec: &mut CommandRecorder, sl: &SoftLight) -> Result<()> {
+        let (samples, rotation) = light_words(sl);
+        rec.update_buffer(
+            self.light_samples.buffer(),
+            0,
+            bytemuck::cast_slice(&samples),
+        )?;
+        rec.update_buffer(
+            self.pixel_rotation.buffer(),
+            0,
+            bytemuck::cast_slice(&rotation),
+        )?;
+        rec.barrier(Barrier::TransferToCompute);
         Ok(())
     }
 
@@ -440,8 +464,12 @@ impl SoftOcclusionPass {
                 Binding::uniform_texel(&lists.list_sample_index, vk::Format::R32_UINT),
                 Binding::uniform(&self.pixel_rotation),
             ];
-            let groups = groups_2d(len.max(1));
-            rec.dispatch(pipeline, &bindings, bytemuck::bytes_of(&push), groups)?;
+            let push = bytemuck::bytes_of(&push);
+            if len == UNITS_INDIRECT {
+                rec.dispatch_indirect(pipeline, &bindings, push, bins.dispatch_args.buffer())?;
+            } else {
+                rec.dispatch(pipeline, &bindings, push, groups_2d(len.max(1)))?;
+            }
             rec.barrier(Barrier::ComputeToCompute);
             Ok(())
         })
@@ -556,4 +584,11 @@ fn planned_len(plan: &[(u32, u32, u64)], start: u32, capacity: u64) -> Option<u3
 /// A pipeline that `prepare` did not make.
 fn not_made() -> crate::Error {
     crate::Error::InvalidInput("an occlusion pipeline was not prepared".into())
+}
+
+/// The light samples (`vec4` each) and the per-pixel rotation block of `sl`,
+/// as the occlusion passes' uniform buffers hold them.
+fn light_words(sl: &SoftLight) -> (Vec<[f32; 4]>, Vec<[u32; 4]>) {
+    let samples = sl.samples.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect();
+    (samples, pixel_rotation_block(sl))
 }

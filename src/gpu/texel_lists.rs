@@ -81,6 +81,12 @@ impl TexelListPass {
         self.scan.max_len() as u64 - 1
     }
 
+    /// Makes the scan's scratch buffers for `frame` now (a caller's
+    /// recording allocates nothing).
+    pub fn reserve_scan(&mut self, frame: &LightFrame) -> Result<()> {
+        self.scan.reserve(frame.texels.min(u32::MAX as u64) as u32)
+    }
+
     /// Checks the frame's texels against the scan's limit.
     pub fn check(&self, frame: &LightFrame) -> Result<()> {
         if frame.texels > self.max_texels() {

@@ -20,8 +20,8 @@ use crate::gpu::shared::LightPush;
 use crate::gpu::soft_light::{SoftLight, SoftMode};
 use crate::gpu::{casters::CasterPass, texel_lists::TexelListPass};
 use crate::vulkan::{
-    Barrier, Binding, CommandRecorder, ComputePipeline, ComputePipelineDesc, DescriptorKind,
-    GpuContext, GrowBuffer,
+    vk, Barrier, Binding, BufferDesc, CommandRecorder, ComputePipeline, ComputePipelineDesc,
+    DescriptorKind, GpuContext, GrowBuffer,
 };
 use crate::Result;
 
@@ -56,6 +56,11 @@ pub struct TileBinPass {
     /// The same with the look-up mode's chunks, per block count (1 to 8).
     units_sure: Vec<ComputePipeline>,
     scan: ScanPass,
+    /// A caller's recording: the occlusion passes' indirect workgroup counts
+    /// from the scans' totals (`record_args.comp`).
+    args: ComputePipeline,
+    /// Those workgroup counts.
+    pub dispatch_args: GrowBuffer,
     /// Per tile: binned pairs (count, then scatter cursor).
     tile_counts: GrowBuffer,
     /// Per tile: offset of its pairs in `tile_pairs`; `[tiles]` = total.
@@ -140,6 +145,12 @@ impl TileBinPass {
                 })
                 .collect::<Result<_>>()?,
             scan: ScanPass::new(ctx)?,
+            args: make("record_args", shaders::RECORD_ARGS, &[sb; 5], &[])?,
+            dispatch_args: {
+                let mut args = BufferDesc::storage("occlusion_dispatch_args", 0);
+                args.usage |= vk::BufferUsageFlags::INDIRECT_BUFFER;
+                GrowBuffer::new(args)
+            },
             tile_counts: GrowBuffer::storage("tile_counts"),
             tile_offsets: GrowBuffer::storage("tile_offsets"),
             tile_units: GrowBuffer::storage("tile_units"),
@@ -156,6 +167,44 @@ impl TileBinPass {
         self.tile_units.get(ctx, 4 * tiles)?;
         self.unit_offsets.get(ctx, 4 * (tiles + 1))?;
         Ok(())
+    }
+
+    /// Sizes the binned-pair list of a caller's recording, which cannot
+    /// wait for the count: `capacity` entries (past them,
+    /// `record_args.comp` reports the overflow and runs no unit).
+    pub fn prepare_for_caller(
+        &mut self,
+        ctx: &GpuContext,
+        frame: &LightFrame,
+        capacity: u32,
+    ) -> Result<()> {
+        self.tile_pairs.get(ctx, 4 * capacity.max(1) as u64)?;
+        self.dispatch_args.get(ctx, 12)?;
+        self.scan.reserve(frame.tiles)?;
+        Ok(())
+    }
+
+    /// A caller's recording, after the scatter: the occlusion passes'
+    /// workgroup counts from the scans' totals, and the light's status
+    /// words (binned pairs, units, overflow, 1).
+    pub fn record_args(&mut self, r: &mut Recording) -> Result<()> {
+        let status = r.for_caller.ok_or_else(|| {
+            crate::Error::Vulkan("internal: record_args outside a caller's recording".into())
+        })?;
+        let (offsets, units) = (&self.tile_offsets, &self.unit_offsets);
+        let (pairs, args) = (&self.tile_pairs, &self.dispatch_args);
+        r.pass("record_args", |rec, pc| {
+            let bindings = [
+                storage(offsets),
+                storage(units),
+                storage(pairs),
+                storage(args),
+                storage(status),
+            ];
+            rec.dispatch(&self.args, &bindings, pc, [1, 1, 1])?;
+            rec.barrier(Barrier::ComputeToIndirect);
+            Ok(())
+        })
     }
 
     /// Records the clears this pass needs before the run's first pass.
@@ -227,16 +276,23 @@ impl TileBinPass {
     }
 
     /// Records the scatter of the pairs into their tiles' lists, sized to
-    /// the `totals` the count found.
+    /// the `totals` the count found (`None`: a caller's recording, whose
+    /// list was sized by [`TileBinPass::prepare_for_caller`]).
     pub fn record_scatter(
         &mut self,
         r: &mut Recording,
-        totals: BinTotals,
+        totals: Option<BinTotals>,
         (casters, lists, clusters): (&CasterPass, &TexelListPass, &ClusterPass),
         counters: &GrowBuffer,
     ) -> Result<()> {
         let triangles = r.inputs.triangles;
-        self.tile_pairs.get(r.ctx, 4 * totals.pairs as u64)?;
+        match totals {
+            Some(totals) => {
+                self.tile_pairs.get(r.ctx, 4 * totals.pairs as u64)?;
+            }
+            // The scans read tile_counts, which the fill below rewrites.
+            None => r.cmd.barrier(Barrier::ComputeToTransfer),
+        }
         r.cmd.fill_buffer(self.tile_counts.slice(), 0)?;
         r.cmd.barrier(Barrier::TransferToCompute);
         let pair_capacity = r.frame.pair_capacity;

@@ -33,9 +33,9 @@ use crate::gpu::shared::VIEW_SAMPLE_VALID;
 use crate::gpu::shared::{GpuTriangle, GpuViewSample};
 use crate::scene::Camera;
 use crate::vulkan::{
-    vertex_input_barrier, vk, Attachment, Barrier, Binding, Buffer, BufferDesc, ComputePipeline,
-    ComputePipelineDesc, DescriptorKind, Framebuffer, GpuContext, GraphicsPipeline,
-    GraphicsPipelineDesc, GrowBuffer, Profiler, VertexAttribute,
+    vertex_input_barrier, vk, Attachment, Barrier, Binding, Buffer, BufferDesc, CommandRecorder,
+    ComputePipeline, ComputePipelineDesc, DescriptorKind, Framebuffer, GpuContext,
+    GraphicsPipeline, GraphicsPipelineDesc, GrowBuffer, Profiler, VertexAttribute,
 };
 use crate::{Error, Result};
 
@@ -92,6 +92,8 @@ pub struct ViewSamplePass {
     /// Bound in place of the alpha tables when there are none.
     none: GrowBuffer,
     profiler: Profiler,
+    /// The resolve's push constants of [`ViewSamplePass::prepare_for_caller`].
+    caller_push: Option<ViewRay>,
 }
 
 const ID_FORMAT: vk::Format = vk::Format::R32_UINT;
@@ -138,6 +140,7 @@ impl ViewSamplePass {
             samples: GrowBuffer::storage("view_samples"),
             none: GrowBuffer::storage("view_alpha_none"),
             profiler: Profiler::new(ctx, 1)?,
+            caller_push: None,
         })
     }
 
@@ -176,53 +179,10 @@ impl ViewSamplePass {
         alpha: Option<AlphaInputs>,
     ) -> Result<(&Buffer, f64)> {
         let any_alpha = alpha.is_some();
-        camera.validate()?;
+        let (raster_push, resolve_push, nt) = pushes(ctx, camera, triangles, any_alpha)?;
         let (width, height) = (camera.width, camera.height);
         let pixels = width as u64 * height as u64;
         let out_bytes = pixels * std::mem::size_of::<GpuViewSample>() as u64;
-        let limits = ctx.device().limits().clone();
-        if out_bytes > limits.max_storage_buffer_range as u64 {
-            return Err(Error::InvalidInput(format!(
-                "{width}x{height} view samples need {out_bytes} bytes, more than the device's \
-                 maxStorageBufferRange of {} bytes",
-                limits.max_storage_buffer_range
-            )));
-        }
-        let nt = u32::try_from(triangles.len())
-            .ok()
-            .filter(|&n| (n as u64) * 3 <= limits.max_texel_buffer_elements as u64)
-            .ok_or_else(|| {
-                Error::InvalidInput(format!(
-                    "{} triangles are more than the view-sample pass can draw on this device",
-                    triangles.len()
-                ))
-            })?;
-
-        // Camera basis and frustum in f32 (the eye is the origin).
-        let (r, u, f) = camera.basis();
-        let tan_half = (camera.fov_y_deg.to_radians() * 0.5).tan();
-        let aspect = width as f64 / height as f64;
-        let v4 = |v: DVec3, w: f64| [v.x as f32, v.y as f32, v.z as f32, w as f32];
-        let far = triangles
-            .iter()
-            .flat_map(|t| [t.v0, t.v1, t.v2])
-            .map(|v| glam::Vec3::from_array(v).length())
-            .filter(|l| l.is_finite())
-            .fold(0.0f32, f32::max);
-        let near = if far > 0.0 { far * 1e-6 } else { 1e-6 };
-        let resolve_push = ViewRay {
-            right: v4(r, tan_half * aspect),
-            up: v4(u, tan_half),
-            forward: v4(f, 0.0),
-            sizes: [width, height, nt, any_alpha as u32],
-        };
-        let raster_push = RasterPush {
-            right: v4(r / (tan_half * aspect), 0.0),
-            down: v4(-u / tan_half, 0.0),
-            forward: [f.x as f32, f.y as f32, f.z as f32, near],
-            ray: resolve_push,
-        };
-
         self.ensure_targets(ctx, [width, height])?;
         let tri_buf = self.triangles.get(ctx, 48 * nt.max(1) as u64)?;
         if nt > 0 {
@@ -232,11 +192,10 @@ impl ViewSamplePass {
         self.samples.get(ctx, out_bytes)?;
         let (tri_buf, ids_buf) = (self.triangles.buffer(), self.ids.buffer());
         let targets = self.targets.as_ref().expect("made above");
-        let profiler = &mut self.profiler;
-        profiler.clear();
+        self.profiler.clear();
         let mut rec = ctx.begin()?;
         vertex_input_barrier(&mut rec);
-        let scope = profiler.begin(&mut rec, "view_samples")?;
+        let scope = self.profiler.begin(&mut rec, "view_samples")?;
         let clear = [
             vk::ClearValue {
                 color: vk::ClearColorValue { uint32: [0; 4] },
@@ -268,8 +227,84 @@ impl ViewSamplePass {
         )?;
         rec.copy_attachment_to_buffer(&targets.ids, 4, ids_buf)?;
         rec.barrier(Barrier::TransferToCompute);
+        self.record_resolve(&mut rec, &resolve_push, nt)?;
+        self.profiler.end(&mut rec, scope);
+        ctx.submit_and_wait(rec)?;
+        let ms = self.profiler.pass_ms("view_samples")?.unwrap_or(f64::NAN);
+        Ok((self.samples.buffer(), ms))
+    }
+}
+
+impl ViewSamplePass {
+    /// Readies a caller's recording of the view samples of `camera` over
+    /// `triangles` (as [`ViewSamplePass::render`] takes them): uploads the
+    /// triangles and sizes the buffers; [`ViewSamplePass::record_from_ids`]
+    /// records the rest.
+    pub fn prepare_for_caller(
+        &mut self,
+        ctx: &GpuContext,
+        camera: &Camera,
+        triangles: &[GpuTriangle],
+        any_alpha: bool,
+    ) -> Result<()> {
+        let (_, resolve_push, nt) = pushes(ctx, camera, triangles, any_alpha)?;
+        let pixels = camera.width as u64 * camera.height as u64;
+        let tri_buf = self.triangles.get(ctx, 48 * nt.max(1) as u64)?;
+        if nt > 0 {
+            ctx.upload(tri_buf, 0, triangles)?;
+        }
+        self.ids.get(ctx, 4 * pixels)?;
+        self.samples
+            .get(ctx, pixels * std::mem::size_of::<GpuViewSample>() as u64)?;
+        self.caller_push = Some(resolve_push);
+        Ok(())
+    }
+
+    /// Records, into a caller's recording, the view samples of a
+    /// visibility buffer: `ids` (`R32_UINT`, the camera's size, in
+    /// `TRANSFER_SRC_OPTIMAL`) holds per pixel the id + 1 of the triangle
+    /// its centre ray meets (0: nothing), as the raster step writes it;
+    /// the resolve step then makes the samples as [`ViewSamplePass::render`]
+    /// does. After [`ViewSamplePass::prepare_for_caller`].
+    pub fn record_from_ids(&self, rec: &mut CommandRecorder, ids: vk::Image) -> Result<()> {
+        let push = self.caller_push.ok_or_else(|| {
+            Error::InvalidInput("record_from_ids before prepare_for_caller".into())
+        })?;
+        let [width, height, nt, _] = push.sizes;
+        let region = vk::BufferImageCopy::default()
+            .image_subresource(vk::ImageSubresourceLayers {
+                aspect_mask: vk::ImageAspectFlags::COLOR,
+                mip_level: 0,
+                base_array_layer: 0,
+                layer_count: 1,
+            })
+            .image_extent(vk::Extent3D {
+                width,
+                height,
+                depth: 1,
+            });
+        // What the last frame's passes read, the copy rewrites.
+        rec.barrier(Barrier::ComputeToTransfer);
+        unsafe {
+            rec.device().raw().cmd_copy_image_to_buffer(
+                rec.raw(),
+                ids,
+                vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                self.ids.buffer().raw(),
+                &[region],
+            )
+        };
+        rec.barrier(Barrier::TransferToCompute);
+        self.record_resolve(rec, &push, nt)
+    }
+
+    /// The resolve step: per pixel, the ray-plane point on the triangle
+    /// of the ids buffer, into the samples buffer.
+    fn record_resolve(&self, rec: &mut CommandRecorder, push: &ViewRay, nt: u32) -> Result<()> {
+        let [width, height, _, _] = push.sizes;
         // A texel view may not be empty: with no triangles the one-triangle
         // buffer is bound (and never read: every id is 0).
+        let tri_buf = self.triangles.buffer();
         let tri_binding = Binding::uniform_texel(
             tri_buf.slice(0, 48 * nt.max(1) as u64)?,
             vk::Format::R32G32B32A32_SFLOAT,
@@ -281,18 +316,13 @@ impl ViewSamplePass {
                 tri_binding,
                 Binding::storage(&self.samples),
             ],
-            bytemuck::bytes_of(&resolve_push),
+            bytemuck::bytes_of(push),
             [width.div_ceil(8), height.div_ceil(8), 1],
         )?;
-        profiler.end(&mut rec, scope);
         rec.barrier(Barrier::ComputeToCompute);
-        ctx.submit_and_wait(rec)?;
-        let ms = profiler.pass_ms("view_samples")?.unwrap_or(f64::NAN);
-        Ok((self.samples.buffer(), ms))
+        Ok(())
     }
-}
 
-impl ViewSamplePass {
     /// The view samples of the last [`ViewSamplePass::render`].
     ///
     /// # Panics
@@ -306,4 +336,62 @@ impl ViewSamplePass {
 /// [`ViewSamplePass::render`] returned) back to the CPU.
 pub fn read_view_samples(ctx: &GpuContext, buf: &Buffer, n: usize) -> Result<Vec<GpuViewSample>> {
     ctx.read_buffer(buf, 0, n)
+}
+
+/// The raster's and the resolve's push constants for `camera` over
+/// `triangles` (checked against the device's limits), and the triangle
+/// count.
+fn pushes(
+    ctx: &GpuContext,
+    camera: &Camera,
+    triangles: &[GpuTriangle],
+    any_alpha: bool,
+) -> Result<(RasterPush, ViewRay, u32)> {
+    camera.validate()?;
+    let (width, height) = (camera.width, camera.height);
+    let pixels = width as u64 * height as u64;
+    let out_bytes = pixels * std::mem::size_of::<GpuViewSample>() as u64;
+    let limits = ctx.device().limits().clone();
+    if out_bytes > limits.max_storage_buffer_range as u64 {
+        return Err(Error::InvalidInput(format!(
+            "{width}x{height} view samples need {out_bytes} bytes, more than the device's \
+             maxStorageBufferRange of {} bytes",
+            limits.max_storage_buffer_range
+        )));
+    }
+    let nt = u32::try_from(triangles.len())
+        .ok()
+        .filter(|&n| (n as u64) * 3 <= limits.max_texel_buffer_elements as u64)
+        .ok_or_else(|| {
+            Error::InvalidInput(format!(
+                "{} triangles are more than the view-sample pass can draw on this device",
+                triangles.len()
+            ))
+        })?;
+
+    // Camera basis and frustum in f32 (the eye is the origin).
+    let (r, u, f) = camera.basis();
+    let tan_half = (camera.fov_y_deg.to_radians() * 0.5).tan();
+    let aspect = width as f64 / height as f64;
+    let v4 = |v: DVec3, w: f64| [v.x as f32, v.y as f32, v.z as f32, w as f32];
+    let far = triangles
+        .iter()
+        .flat_map(|t| [t.v0, t.v1, t.v2])
+        .map(|v| glam::Vec3::from_array(v).length())
+        .filter(|l| l.is_finite())
+        .fold(0.0f32, f32::max);
+    let near = if far > 0.0 { far * 1e-6 } else { 1e-6 };
+    let resolve_push = ViewRay {
+        right: v4(r, tan_half * aspect),
+        up: v4(u, tan_half),
+        forward: v4(f, 0.0),
+        sizes: [width, height, nt, any_alpha as u32],
+    };
+    let raster_push = RasterPush {
+        right: v4(r / (tan_half * aspect), 0.0),
+        down: v4(-u / tan_half, 0.0),
+        forward: [f.x as f32, f.y as f32, f.z as f32, near],
+        ray: resolve_push,
+    };
+    Ok((raster_push, resolve_push, nt))
 }

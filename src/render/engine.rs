@@ -13,6 +13,7 @@ use crate::cpu::light_view::LightView;
 use crate::gpu::alpha::mark_alpha_triangles;
 use crate::gpu::shared::{GpuTriangle, GpuViewSample};
 use crate::gpu::view_samples::ViewSamplePass;
+use crate::gpu::visibility_out::VisibilityOutPass;
 use crate::gpu::ShadowPipeline;
 use crate::light::Light;
 use crate::oracle::ViewSample;
@@ -36,6 +37,8 @@ pub struct Engine {
     /// Counts the frames whose view samples and triangles the GPU buffers
     /// hold ([`super::FrameReuse`] reuses them only while it is its own).
     pub(super) frame_id: u64,
+    /// A recorded frame's visibility into the caller's targets.
+    pub(super) visibility_out: VisibilityOutPass,
 }
 
 /// Hard-shadow visibility of a set of view samples for one light.
@@ -86,6 +89,7 @@ impl Engine {
     fn with_context(ctx: GpuContext) -> Result<Self> {
         let shadows = ShadowPipeline::new(&ctx)?;
         let view = ViewSamplePass::new(&ctx)?;
+        let visibility_out = VisibilityOutPass::new(&ctx)?;
         Ok(Engine {
             ctx,
             view,
@@ -93,6 +97,7 @@ impl Engine {
             triangles: GrowBuffer::storage("triangles"),
             shading: ShadingCache::default(),
             frame_id: 0,
+            visibility_out,
         })
     }
 

@@ -24,6 +24,7 @@ pub mod dump_assembly;
 pub mod engine;
 pub mod gpu_frame;
 pub mod inputs;
+pub mod record;
 pub mod reference;
 pub mod reuse;
 pub mod validate;
@@ -34,6 +35,9 @@ pub use engine::{Engine, HardShadowResult, SoftShadowResult};
 pub(crate) use inputs::user_gpu_inputs;
 pub use inputs::{
     gpu_triangles, light_view, soft_light, user_gpu_triangles, INFLUENCE_POLYGON_DEGREE,
+};
+pub use record::{
+    RecordOptions, RecordReport, RecordedFrame, RecordedLight, ViewSampleSource, VisibilityTarget,
 };
 pub use reference::{render_reference, MAX_REFERENCE_PIXELS};
 pub use reuse::{FrameReuse, Generations};

@@ -90,9 +90,38 @@ pub struct Buffer {
     location: MemoryLocation,
     name: String,
     device: Arc<Device>,
+    /// A caller's buffer ([`Buffer::borrowed`]): never destroyed here.
+    borrowed: bool,
 }
 
 impl Buffer {
+    /// A caller's buffer of `size` bytes with `usage`, for binding in a
+    /// recording (e.g. [`crate::render::Engine::record_frame`]'s inputs and
+    /// targets). Dropping it destroys nothing.
+    ///
+    /// # Safety
+    /// `raw` must be a buffer of `device` of at least `size` bytes, with
+    /// memory bound and `usage`, that outlives every use of this handle and
+    /// of the recordings that bind it.
+    pub unsafe fn borrowed(
+        device: &Arc<Device>,
+        raw: vk::Buffer,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        name: &str,
+    ) -> Buffer {
+        Buffer {
+            raw,
+            allocation: None,
+            size,
+            usage,
+            location: MemoryLocation::Unknown,
+            name: name.to_string(),
+            device: Arc::clone(device),
+            borrowed: true,
+        }
+    }
+
     /// Creates a buffer and binds fresh memory to it.
     pub fn new(device: &Arc<Device>, desc: &BufferDesc) -> Result<Buffer> {
         let size = desc.size.max(4);
@@ -115,6 +144,7 @@ impl Buffer {
             location: desc.location,
             name: desc.name.clone(),
             device: Arc::clone(device),
+            borrowed: false,
         };
         let requirements = unsafe { device.raw().get_buffer_memory_requirements(raw) };
         let allocation = device
@@ -272,6 +302,9 @@ impl Buffer {
 
 impl Drop for Buffer {
     fn drop(&mut self) {
+        if self.borrowed {
+            return;
+        }
         unsafe { self.device.raw().destroy_buffer(self.raw, None) };
         if let Some(a) = self.allocation.take() {
             if let Err(e) = self.device.allocator().free(a) {

@@ -64,6 +64,28 @@ impl CommandRecorder {
         Ok(rec)
     }
 
+    /// Records into a caller's command buffer `cmd`, already begun, from a
+    /// pool of the device's queue family: this recorder neither begins,
+    /// ends nor frees it, and [`super::GpuContext::submit_and_wait`] refuses
+    /// it. Dropping the recorder frees its descriptor sets and texel views,
+    /// so it must outlive the caller's submission.
+    pub fn for_caller(device: &Arc<Device>, cmd: vk::CommandBuffer) -> Self {
+        CommandRecorder {
+            pool: vk::CommandPool::null(),
+            cmd,
+            descriptor_pools: Vec::new(),
+            views: Vec::new(),
+            keep_alive: Vec::new(),
+            device: Arc::clone(device),
+        }
+    }
+
+    /// Whether this records into a caller's command buffer
+    /// ([`CommandRecorder::for_caller`]).
+    pub fn is_callers(&self) -> bool {
+        self.pool == vk::CommandPool::null()
+    }
+
     /// The raw command buffer, for commands this type has no helper for.
     pub fn raw(&self) -> vk::CommandBuffer {
         self.cmd
@@ -105,6 +127,30 @@ impl CommandRecorder {
             self.device
                 .raw()
                 .cmd_copy_buffer(self.cmd, src.buffer.raw(), dst.raw(), &[region])
+        };
+        Ok(())
+    }
+
+    /// Writes `data` (at most 65,536 bytes, a multiple of 4) into `dst` at
+    /// byte `offset` from the command buffer itself (`vkCmdUpdateBuffer`):
+    /// an upload that a recording for a caller can make without a
+    /// submission of its own.
+    pub fn update_buffer(&mut self, dst: &Buffer, offset: u64, data: &[u8]) -> Result<()> {
+        if data.is_empty() {
+            return Ok(());
+        }
+        if data.len() > 65536 || !data.len().is_multiple_of(4) || !offset.is_multiple_of(4) {
+            return Err(Error::InvalidInput(format!(
+                "update of buffer \"{}\": {} bytes at {offset} (at most 65536, multiples of 4)",
+                dst.name(),
+                data.len()
+            )));
+        }
+        dst.slice(offset, data.len() as u64)?;
+        unsafe {
+            self.device
+                .raw()
+                .cmd_update_buffer(self.cmd, dst.raw(), offset, data)
         };
         Ok(())
     }
@@ -288,6 +334,14 @@ impl CommandRecorder {
                         image_layout: vk::ImageLayout::GENERAL,
                     },
                 )),
+                Binding::StorageImageView(view) => image_infos.push((
+                    i,
+                    vk::DescriptorImageInfo {
+                        sampler: vk::Sampler::null(),
+                        image_view: *view,
+                        image_layout: vk::ImageLayout::GENERAL,
+                    },
+                )),
                 Binding::UniformTexel(s, f) | Binding::StorageTexel(s, f) => {
                     let usage = if k == DescriptorKind::UniformTexelBuffer {
                         vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER
@@ -429,6 +483,11 @@ impl CommandRecorder {
     /// Ends recording; called by `submit_and_wait`, which appends a barrier
     /// making every write visible to the host first.
     pub(crate) fn finish(&mut self) -> Result<()> {
+        if self.is_callers() {
+            return Err(Error::InvalidInput(
+                "a caller's command buffer is submitted by the caller".into(),
+            ));
+        }
         self.barrier(Barrier::AllToHost);
         unsafe { self.device.raw().end_command_buffer(self.cmd) }?;
         Ok(())
@@ -466,8 +525,10 @@ impl Drop for CommandRecorder {
             for p in self.descriptor_pools.drain(..) {
                 d.destroy_descriptor_pool(p.raw, None);
             }
-            // Frees the command buffer too.
-            d.destroy_command_pool(self.pool, None);
+            // Frees the command buffer too (a caller's is the caller's).
+            if !self.is_callers() {
+                d.destroy_command_pool(self.pool, None);
+            }
         }
     }
 }

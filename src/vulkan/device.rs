@@ -709,7 +709,7 @@ impl Device {
     }
 
     /// The compute queue, locked: queue submission is externally synchronised.
-    pub(crate) fn queue(&self) -> std::sync::MutexGuard<'_, vk::Queue> {
+    pub fn queue(&self) -> std::sync::MutexGuard<'_, vk::Queue> {
         lock(&self.queue)
     }
 

@@ -61,6 +61,8 @@ pub enum Binding<'a> {
     Uniform(BufferSlice<'a>),
     /// A storage image (kept in `GENERAL` layout).
     StorageImage(&'a Image),
+    /// A caller's storage image view (in `GENERAL` layout).
+    StorageImageView(vk::ImageView),
     /// A read-only texel buffer view of the range with the given format
     /// (the view is made at record time and lives as long as the recording).
     UniformTexel(BufferSlice<'a>, vk::Format),
@@ -94,7 +96,7 @@ impl<'a> Binding<'a> {
         match self {
             Binding::Storage(_) => DescriptorKind::StorageBuffer,
             Binding::Uniform(_) => DescriptorKind::UniformBuffer,
-            Binding::StorageImage(_) => DescriptorKind::StorageImage,
+            Binding::StorageImage(_) | Binding::StorageImageView(_) => DescriptorKind::StorageImage,
             Binding::UniformTexel(..) => DescriptorKind::UniformTexelBuffer,
             Binding::StorageTexel(..) => DescriptorKind::StorageTexelBuffer,
         }

@@ -1,0 +1,405 @@
+//! Shadows recorded into a renderer's own command buffer
+//! ([`Engine::record_frame`]): the view samples come from the renderer's
+//! G-buffer on the GPU (a visibility buffer of triangle ids, or a buffer of
+//! [`GpuViewSample`]s), each light's visibility goes to the renderer's
+//! storage buffer or image, and nothing is submitted or read back in
+//! between. The same passes as [`Engine::render`], in the same order, with
+//! the same results (tests/record.rs compares them bit for bit).
+//!
+//! ```text
+//! let mut frame = engine.record_frame(&desc, &RecordOptions::default())?; // uploads, sizes
+//! unsafe {
+//!     frame.record_view_samples(cmd, ViewSampleSource::TriangleIds(ids_image))?;
+//!     frame.record_light(cmd, 0, VisibilityTarget::Image(view0))?;
+//!     frame.record_light(cmd, 1, VisibilityTarget::Image(view1))?;
+//! }
+//! // end, submit and wait for `cmd` (the renderer's queue), then:
+//! let report = frame.finish()?;
+//! ```
+//!
+//! **Synchronisation.** Before the first recorded command, the renderer
+//! makes its writes to the inputs available: the triangle-id image in
+//! `TRANSFER_SRC_OPTIMAL` with its writes made visible to
+//! `TRANSFER`/`TRANSFER_READ`, or the view-sample buffer's writes visible to
+//! `COMPUTE_SHADER`/`SHADER_READ`. A target buffer or image (`GENERAL`
+//! layout) is written by `COMPUTE_SHADER` with `SHADER_WRITE`; a barrier
+//! from there to the renderer's use is the renderer's. The engine's own
+//! buffers are synchronised by the recorded commands themselves.
+//!
+//! **Limits.** Lights with extent run in exact mode
+//! ([`crate::gpu::soft_light::SoftMode::Exact`]): the look-up modes size their work on the
+//! host. The list of binned (caster, tile) pairs has a fixed capacity
+//! ([`RecordOptions::binned_pairs`]); a light that needs more runs no
+//! occlusion test and [`RecordedFrame::finish`] says so, with the count it
+//! needed. Counters and pass timings are not read back.
+
+use glam::DVec3;
+
+use super::inputs::{light_view, soft_light};
+use super::Engine;
+use crate::cpu::alpha::AlphaTables;
+use crate::cpu::light_view::LightView;
+use crate::gpu::alpha::mark_alpha_triangles;
+use crate::gpu::gpu_inputs;
+use crate::gpu::shared::{GpuViewSample, LightPush};
+use crate::gpu::soft_light::{SoftLight, SoftMode};
+use crate::gpu::visibility_out::OutTarget;
+use crate::scene::file::SceneDescription;
+use crate::vulkan::{vk, Buffer, BufferDesc, CommandRecorder, MemoryLocation};
+use crate::{Error, Result};
+
+use super::inputs::gpu_triangles;
+
+/// Where a recorded frame's view samples come from (the camera's
+/// `width × height` pixels, index `y · width + x`, `y = 0` the top row).
+#[derive(Clone, Copy, Debug)]
+pub enum ViewSampleSource {
+    /// A visibility buffer: an `R32_UINT` image of the camera's size with
+    /// `TRANSFER_SRC` usage, in `TRANSFER_SRC_OPTIMAL`, holding per pixel
+    /// the index + 1 of the scene triangle (in [`gpu_triangles`] order) that
+    /// the pixel-centre ray meets, 0 where none. The engine intersects each
+    /// pixel's ray with that triangle's plane, as its own raster step does.
+    TriangleIds(vk::Image),
+    /// A storage buffer of `width × height` [`GpuViewSample`]s (32 bytes
+    /// each, positions relative to the camera's eye) starting at `offset`.
+    Buffer {
+        /// The buffer (`STORAGE_BUFFER` usage).
+        buffer: vk::Buffer,
+        /// Byte offset of the first sample (a multiple of the device's
+        /// `minStorageBufferOffsetAlignment`).
+        offset: u64,
+    },
+}
+
+/// Where a recorded light's visibility goes: per view sample, the visible
+/// fraction (hard shadows: 1 lit, 0 shadowed), 0 where no sample was
+/// evaluated, exactly as [`crate::render::Frame`]'s dump holds it.
+#[derive(Clone, Copy, Debug)]
+pub enum VisibilityTarget {
+    /// `width × height` `f32`s at `offset` in a storage buffer.
+    Buffer {
+        /// The buffer (`STORAGE_BUFFER` usage).
+        buffer: vk::Buffer,
+        /// Byte offset (a multiple of `minStorageBufferOffsetAlignment`).
+        offset: u64,
+    },
+    /// An `R32_SFLOAT` storage image of the camera's size, in `GENERAL`
+    /// layout: view sample `y · width + x` at texel `(x, y)`.
+    Image(vk::ImageView),
+}
+
+/// Options of [`Engine::record_frame`].
+#[derive(Clone, Copy, Debug)]
+pub struct RecordOptions {
+    /// Capacity of the list of binned (caster, light tile) pairs, in
+    /// entries of 4 bytes, shared by the frame's lights one after another.
+    /// A light that needs more is reported by [`RecordedFrame::finish`].
+    pub binned_pairs: u32,
+}
+
+impl Default for RecordOptions {
+    /// 4 Mi entries (16 MiB).
+    fn default() -> Self {
+        RecordOptions {
+            binned_pairs: 1 << 22,
+        }
+    }
+}
+
+/// What the GPU reported for one recorded light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RecordedLight {
+    /// The light's index in the scene description.
+    pub light: usize,
+    /// Binned (caster, light tile) pairs it needed.
+    pub binned_pairs: u32,
+    /// Occlusion work units it ran.
+    pub units: u32,
+}
+
+/// What [`RecordedFrame::finish`] returns: per recorded light, in the order
+/// recorded.
+#[derive(Clone, Debug, Default)]
+pub struct RecordReport {
+    /// The recorded lights.
+    pub lights: Vec<RecordedLight>,
+}
+
+/// One light as the passes take it.
+struct FrameLight {
+    view: LightView,
+    texels: u32,
+    soft: Option<SoftLight>,
+}
+
+/// A frame being recorded into a renderer's command buffers
+/// ([`Engine::record_frame`]). It holds the engine, and the descriptor sets
+/// of what it recorded: keep it until every submission of those commands
+/// has completed, then call [`RecordedFrame::finish`].
+pub struct RecordedFrame<'e> {
+    engine: &'e mut Engine,
+    lights: Vec<FrameLight>,
+    /// View samples (pixels) and triangles.
+    n: u32,
+    nt: u32,
+    /// The caller's view-sample buffer (else the engine's view samples).
+    samples: Option<Buffer>,
+    /// Host-visible: four words per light (`record_args.comp`).
+    status: Buffer,
+    /// The lights recorded, in order.
+    recorded: Vec<usize>,
+    recorders: Vec<CommandRecorder>,
+    view_recorded: bool,
+}
+
+impl Engine {
+    /// Starts a frame of `desc` (its scene, camera, lights and shadow
+    /// settings) whose passes a renderer records into its own command
+    /// buffers ([`RecordedFrame`]; the module documentation, [`self`], says
+    /// how). This call uploads the scene's triangles and sizes every buffer
+    /// for all of `desc`'s lights, waiting on the engine's queue; the
+    /// recordings then allocate and submit nothing.
+    ///
+    /// Errors: an invalid description, a light with extent in a look-up
+    /// mode (recordings run exact mode), or a zero `binned_pairs`.
+    pub fn record_frame(
+        &mut self,
+        desc: &SceneDescription,
+        options: &RecordOptions,
+    ) -> Result<RecordedFrame<'_>> {
+        desc.validate()?;
+        if options.binned_pairs == 0 {
+            return Err(Error::InvalidInput(
+                "RecordOptions::binned_pairs must be at least 1".into(),
+            ));
+        }
+        let eye = desc.camera.eye;
+        let lights = frame_lights(desc, eye)?;
+        let (_, mut tris) = gpu_inputs(&[], &gpu_triangles(&desc.scene, eye));
+        let alpha = AlphaTables::new(&desc.scene);
+        mark_alpha_triangles(&mut tris, &alpha);
+        self.shadows.set_alpha(&self.ctx, &alpha)?;
+        let any_alpha = self.shadows.alpha().1;
+        self.view
+            .prepare_for_caller(&self.ctx, &desc.camera, &tris, any_alpha)?;
+        let tri_buf = self.triangles.get(&self.ctx, 48 * tris.len() as u64)?;
+        self.ctx.upload_staged(tri_buf, 0, &tris)?;
+        // The GPU buffers no longer hold a frame that render_reusing knows.
+        self.frame_id += 1;
+        let n = desc.camera.width * desc.camera.height;
+        let nt = u32::try_from(tris.len())
+            .map_err(|_| Error::InvalidInput("too many triangles".into()))?;
+        for l in &lights {
+            let light = (&l.view, l.texels, l.soft.as_ref());
+            self.shadows.prepare_for_caller(
+                &self.ctx,
+                (self.view.samples(), n),
+                (self.triangles.buffer(), nt),
+                light,
+                options.binned_pairs,
+            )?;
+        }
+        let status = self.ctx.create_buffer(BufferDesc {
+            name: "record_status".into(),
+            size: 16 * lights.len().max(1) as u64,
+            usage: vk::BufferUsageFlags::STORAGE_BUFFER,
+            location: MemoryLocation::GpuToCpu,
+        })?;
+        status.write_mapped(0, &vec![0u32; 4 * lights.len().max(1)])?;
+        Ok(RecordedFrame {
+            engine: self,
+            lights,
+            n,
+            nt,
+            samples: None,
+            status,
+            recorded: Vec::new(),
+            recorders: Vec::new(),
+            view_recorded: false,
+        })
+    }
+}
+
+/// The lights of `desc` as the passes take them; lights with extent must
+/// be in exact mode.
+fn frame_lights(desc: &SceneDescription, eye: DVec3) -> Result<Vec<FrameLight>> {
+    desc.lights
+        .iter()
+        .enumerate()
+        .map(|(k, light)| match light_view(light, eye) {
+            Some(view) => Ok(FrameLight {
+                view,
+                texels: desc.shadows.light_texels,
+                soft: None,
+            }),
+            None => {
+                let (sl, view) = soft_light(light, eye, &desc.shadows)
+                    .ok_or_else(|| Error::InvalidInput(format!("light {k} has no samples")))?;
+                if sl.mode != SoftMode::Exact {
+                    return Err(Error::InvalidInput(format!(
+                        "light {k}: a recorded frame computes soft shadows in exact mode only \
+                         (set the shadow settings' mode to exact; {:?} mode sizes its work on \
+                         the host)",
+                        sl.mode
+                    )));
+                }
+                Ok(FrameLight {
+                    view,
+                    texels: desc.shadows.soft_light_texels,
+                    soft: Some(sl),
+                })
+            }
+        })
+        .collect()
+}
+
+impl RecordedFrame<'_> {
+    /// The engine's Vulkan context (its device is the one to record for).
+    pub fn context(&self) -> &crate::vulkan::GpuContext {
+        &self.engine.ctx
+    }
+
+    /// Records the view samples from `source` into `cmd`.
+    ///
+    /// # Safety
+    /// `cmd` is a primary command buffer of the engine's device in the
+    /// recording state, from a pool of the engine's queue family, and is
+    /// submitted to a queue of that family; the images and buffers `source`
+    /// names are the engine device's, of the sizes and usages
+    /// [`ViewSampleSource`] says, and live until the submission completed;
+    /// `self` is kept until then too.
+    pub unsafe fn record_view_samples(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        source: ViewSampleSource,
+    ) -> Result<()> {
+        let ctx = &self.engine.ctx;
+        let mut rec = CommandRecorder::for_caller(ctx.device(), cmd);
+        match source {
+            ViewSampleSource::TriangleIds(image) => {
+                self.samples = None;
+                self.engine.view.record_from_ids(&mut rec, image)?;
+            }
+            ViewSampleSource::Buffer { buffer, offset } => {
+                let bytes = self.n as u64 * std::mem::size_of::<GpuViewSample>() as u64;
+                let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+                // SAFETY: the caller's promise above.
+                let whole = unsafe {
+                    Buffer::borrowed(ctx.device(), buffer, offset + bytes, usage, "samples")
+                };
+                whole.slice(offset, bytes)?;
+                if offset != 0 {
+                    return Err(Error::InvalidInput(
+                        "a view-sample buffer must start at offset 0 (the passes bind it whole)"
+                            .into(),
+                    ));
+                }
+                self.samples = Some(whole);
+            }
+        }
+        self.recorders.push(rec);
+        self.view_recorded = true;
+        Ok(())
+    }
+
+    /// Records light `k`'s passes into `cmd`, after the view samples (in
+    /// this command buffer or one submitted before it), its visibility
+    /// into `target`.
+    ///
+    /// On an error, what this frame recorded into `cmd` so far must not
+    /// be submitted.
+    ///
+    /// # Safety
+    /// As [`RecordedFrame::record_view_samples`], for `cmd` and `target`.
+    pub unsafe fn record_light(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        k: usize,
+        target: VisibilityTarget,
+    ) -> Result<()> {
+        if !self.view_recorded {
+            return Err(Error::InvalidInput(
+                "record the view samples before the lights".into(),
+            ));
+        }
+        let light = self.lights.get(k).ok_or_else(|| {
+            Error::InvalidInput(format!(
+                "light {k} is not in the frame ({} lights)",
+                self.lights.len()
+            ))
+        })?;
+        let engine = &mut *self.engine;
+        let ctx = &engine.ctx;
+        let samples = match &self.samples {
+            Some(b) => b,
+            None => engine.view.samples(),
+        };
+        let status = self.status.slice(16 * k as u64, 16)?;
+        let rec = CommandRecorder::for_caller(ctx.device(), cmd);
+        let light_in = (&light.view, light.texels, light.soft.as_ref());
+        let mut rec = engine.shadows.record_for_caller(
+            ctx,
+            (rec, status),
+            (samples, self.n),
+            (engine.triangles.buffer(), self.nt),
+            light_in,
+        )?;
+        let bytes = 4 * self.n as u64;
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let borrowed;
+        let out = match target {
+            VisibilityTarget::Buffer { buffer, offset } => {
+                // SAFETY: the caller's promise above.
+                borrowed = unsafe {
+                    Buffer::borrowed(ctx.device(), buffer, offset + bytes, storage, "target")
+                };
+                OutTarget::Buffer(borrowed.slice(offset, bytes)?)
+            }
+            VisibilityTarget::Image(view) => OutTarget::Image(view),
+        };
+        // The conversion reads sizes.x, the view samples.
+        let mut push: LightPush = bytemuck::Zeroable::zeroed();
+        push.sizes[0] = self.n;
+        let result = engine.shadows.passes().resolve.result.slice();
+        engine
+            .visibility_out
+            .record(&mut rec, result, light.soft.is_some(), out, &push)?;
+        rec.barrier(crate::vulkan::Barrier::ComputeToHost);
+        self.recorders.push(rec);
+        self.recorded.push(k);
+        Ok(())
+    }
+
+    /// After every submission of the recorded commands completed: what
+    /// each recorded light reported, or an error naming a light whose
+    /// binned pairs passed [`RecordOptions::binned_pairs`] (its target then
+    /// holds no shadow: record the frame again with at least the count the
+    /// error gives) or that did not run.
+    pub fn finish(self) -> Result<RecordReport> {
+        let words: Vec<u32> = self.status.read_mapped(0, 4 * self.lights.len().max(1))?;
+        let mut report = RecordReport::default();
+        for &k in &self.recorded {
+            let w = &words[4 * k..4 * k + 4];
+            if w[3] != 1 {
+                return Err(Error::Vulkan(format!(
+                    "light {k} was recorded but did not run: finish() must wait for the \
+                     submission"
+                )));
+            }
+            if w[2] != 0 {
+                return Err(Error::InvalidInput(format!(
+                    "light {k} needed {} binned pairs, more than RecordOptions::binned_pairs; \
+                     its target holds no shadows",
+                    w[0]
+                )));
+            }
+            report.lights.push(RecordedLight {
+                light: k,
+                binned_pairs: w[0],
+                units: w[1],
+            });
+        }
+        self.engine.ctx.check_validation()?;
+        Ok(report)
+    }
+}
