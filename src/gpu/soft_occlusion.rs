@@ -314,9 +314,12 @@ impl SoftOcclusionPass {
                 }
             }
             len = len.min(units - start);
+            // The passes before wrote the counters; the copy reads the
+            // fill's word too.
+            r.cmd.barrier(Barrier::ComputeToTransfer);
             r.cmd
                 .fill_buffer(counters.buffer().slice(listed_at, 4)?, 0)?;
-            r.cmd.barrier(Barrier::ComputeToTransfer);
+            r.cmd.barrier(Barrier::TransferToTransfer);
             r.cmd
                 .copy_buffer(counters.slice(), self.counters_before.buffer(), 0)?;
             r.cmd.barrier(Barrier::TransferToCompute);
