@@ -1,6 +1,8 @@
 //! One light's passes over one batch of view samples and triangles, in the
-//! order of the paper: [`LightPasses::run`] is the page to read against
-//! §3 (hard shadows) and §4 (soft shadows). Each pass lives in its own
+//! order of the paper: `record_passes` is the page to read against §3
+//! (hard shadows) and §4 (soft shadows); [`LightPasses::run`] records it
+//! and reads the results back, [`LightPasses::record_for_caller`] records
+//! it into a renderer's command buffer. Each pass lives in its own
 //! module with its shader family and its CPU twin of the same name in
 //! [`crate::cpu`]; the buffers each writes belong to it and live across
 //! frames ([`GrowBuffer`]), grown only when a frame needs more.
@@ -152,7 +154,7 @@ impl LightPasses {
         }
         let (stages, clock) = self.stages();
         let r = &mut Recording::new(ctx, clock, *inputs, frame)?;
-        let carried = match record_light(stages, r, soft)? {
+        let carried = match record_passes(stages, r, soft)? {
             Ok(carried) => carried,
             Err(ran) => return Ok(ran),
         };
@@ -227,7 +229,7 @@ impl LightPasses {
         if let Some(sl) = soft {
             stages.soft_occlusion.record_upload(&mut r.cmd, sl)?;
         }
-        if let Err(Ran::TooManyPairs { .. }) = record_light(stages, r, soft)? {
+        if let Err(Ran::TooManyPairs { .. }) = record_passes(stages, r, soft)? {
             return Err(Error::Vulkan(
                 "internal: a caller's recording asked for smaller batches".into(),
             ));
@@ -239,7 +241,7 @@ impl LightPasses {
         Ok(std::mem::replace(&mut r.cmd, none))
     }
 
-    /// The passes as [`record_light`] takes them, and the clock apart.
+    /// The passes as [`record_passes`] takes them, and the clock apart.
     fn stages(&mut self) -> (Stages<'_>, &mut PassClock) {
         let LightPasses {
             light_view,
@@ -382,7 +384,7 @@ struct Stages<'p> {
 /// The passes of one light in the paper's order, recorded into `r`: the
 /// page to read against §3 and §4. Returns the counters of the rounds
 /// before the last (to add to the last's), or the batching a run needs.
-fn record_light(
+fn record_passes(
     stages: Stages,
     r: &mut Recording,
     soft: Option<&SoftLight>,

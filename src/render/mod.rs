@@ -9,15 +9,17 @@
 //!    bit, or a light-sample bitmask from the plane look-up texture);
 //! 5. visibility = visible light samples / light samples, then shading.
 //!
-//! Steps 2–5 for one light are one function,
-//! [`crate::gpu::light_passes::LightPasses::run`]: read it against the
+//! Steps 2–5 for one light are one function, `record_passes` in
+//! [`crate::gpu::light_passes`] (run by
+//! [`crate::gpu::light_passes::LightPasses::run`]): read it against the
 //! paper's §3 and §4.
 //!
 //! The public API is [`Engine`] ([`engine`]): frames of a scene, and the
 //! visibility of the caller's own view samples. Around it: [`inputs`] (the
 //! caller's data in GPU form), [`validate`] (the checks on it) and
 //! [`dump_assembly`] (a frame's dump); [`accumulate`] (frames with fresh
-//! light samples, averaged).
+//! light samples, averaged); [`record`](mod@record) (the same passes recorded into a
+//! renderer's own command buffer, from its G-buffer into its images).
 
 pub mod accumulate;
 pub mod dump_assembly;
