@@ -300,8 +300,15 @@ fn two_lights_recorded_into_one_submission_equal_the_engines_frame() {
         (0, buffer_target(&targets[0])),
     ];
     let source = (|_: &Device, _| {}, buffer_source(&samples));
+    let before = engine.context().allocations();
     record_one_submission(&mut engine, &desc, &options, source, &lights).unwrap();
     let ctx = engine.context();
+    // A second recorded frame of the same size makes no buffer or image.
+    assert_eq!(
+        ctx.allocations(),
+        before,
+        "the second recorded frame allocated"
+    );
     let got: Vec<f32> = ctx.read_buffer_staged(&targets[0], 0, n).unwrap();
     assert_eq!(differing(&got, &expected[0]), 0, "sample buffer, light 0");
     let bytes = ctx.read_image(&image_target, 4).unwrap();

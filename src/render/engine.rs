@@ -39,6 +39,8 @@ pub struct Engine {
     pub(super) frame_id: u64,
     /// A recorded frame's visibility into the caller's targets.
     pub(super) visibility_out: VisibilityOutPass,
+    /// A recorded frame's status words, four per light (host-visible).
+    pub(super) record_status: Option<crate::vulkan::Buffer>,
 }
 
 /// Hard-shadow visibility of a set of view samples for one light.
@@ -98,6 +100,7 @@ impl Engine {
             shading: ShadingCache::default(),
             frame_id: 0,
             visibility_out,
+            record_status: None,
         })
     }
 

@@ -144,8 +144,6 @@ pub struct RecordedFrame<'e> {
     nt: u32,
     /// The caller's view-sample buffer (else the engine's view samples).
     samples: Option<Buffer>,
-    /// Host-visible: four words per light (`record_args.comp`).
-    status: Buffer,
     /// The lights recorded, in order.
     recorded: Vec<usize>,
     recorders: Vec<CommandRecorder>,
@@ -199,12 +197,19 @@ impl Engine {
                 options.binned_pairs,
             )?;
         }
-        let status = self.ctx.create_buffer(BufferDesc {
-            name: "record_status".into(),
-            size: 16 * lights.len().max(1) as u64,
-            usage: vk::BufferUsageFlags::STORAGE_BUFFER,
-            location: MemoryLocation::GpuToCpu,
-        })?;
+        // Host-visible, kept across frames (the frame holds the engine, so
+        // no other frame uses it meanwhile).
+        let bytes = 16 * lights.len().max(1) as u64;
+        if self.record_status.as_ref().is_none_or(|b| b.size() < bytes) {
+            self.record_status = None;
+            self.record_status = Some(self.ctx.create_buffer(BufferDesc {
+                name: "record_status".into(),
+                size: bytes,
+                usage: vk::BufferUsageFlags::STORAGE_BUFFER,
+                location: MemoryLocation::GpuToCpu,
+            })?);
+        }
+        let status = self.record_status.as_ref().expect("made above");
         status.write_mapped(0, &vec![0u32; 4 * lights.len().max(1)])?;
         Ok(RecordedFrame {
             engine: self,
@@ -212,7 +217,6 @@ impl Engine {
             n,
             nt,
             samples: None,
-            status,
             recorded: Vec::new(),
             recorders: Vec::new(),
             view_recorded: false,
@@ -334,7 +338,11 @@ impl RecordedFrame<'_> {
             Some(b) => b,
             None => engine.view.samples(),
         };
-        let status = self.status.slice(16 * k as u64, 16)?;
+        let status = engine
+            .record_status
+            .as_ref()
+            .expect("made by record_frame")
+            .slice(16 * k as u64, 16)?;
         let rec = CommandRecorder::for_caller(ctx.device(), cmd);
         let light_in = (&light.view, light.texels, light.soft.as_ref());
         let mut rec = engine.shadows.record_for_caller(
@@ -376,7 +384,12 @@ impl RecordedFrame<'_> {
     /// holds no shadow: record the frame again with at least the count the
     /// error gives) or that did not run.
     pub fn finish(self) -> Result<RecordReport> {
-        let words: Vec<u32> = self.status.read_mapped(0, 4 * self.lights.len().max(1))?;
+        let status = self
+            .engine
+            .record_status
+            .as_ref()
+            .expect("made by record_frame");
+        let words: Vec<u32> = status.read_mapped(0, 4 * self.lights.len().max(1))?;
         let mut report = RecordReport::default();
         for &k in &self.recorded {
             let w = &words[4 * k..4 * k + 4];
