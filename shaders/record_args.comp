@@ -12,9 +12,11 @@ layout(set = 0, binding = 1) readonly buffer UnitOffsets { uint unit_offsets[]; 
 // Capacity of the binned-pair list in entries.
 layout(set = 0, binding = 2) writeonly buffer TilePairs { uint tile_pairs[]; };
 layout(set = 0, binding = 3) writeonly buffer Args { uint args[]; };
-// x: binned pairs, y: work units, z: 1 when the pairs overflowed, w: 1
-// (the light ran).
-layout(set = 0, binding = 4) writeonly buffer Status { uvec4 status; };
+// Zeroed by the host per frame; over a light's rounds (opaque, then
+// alpha-tested casters): x the most binned pairs, y the most work units,
+// z 1 when any round's pairs overflowed. w is set after the light's last
+// pass (RecordedFrame::record_light).
+layout(set = 0, binding = 4) buffer Status { uvec4 status; };
 
 void main() {
     uint tiles = pc.more.z * pc.sizes.w;
@@ -28,5 +30,7 @@ void main() {
     if (g == 0u) {
         args[0] = 0u;
     }
-    status = uvec4(pairs, units, overflow ? 1u : 0u, 1u);
+    uvec4 before = status;
+    status.xyz = uvec3(max(before.x, pairs), max(before.y, units),
+                       before.z | (overflow ? 1u : 0u));
 }

@@ -19,7 +19,12 @@ use std::sync::Arc;
 /// `builtin:demo` at 48×40 with a point light and a sphere light (exact
 /// mode, 64 samples).
 fn scene() -> SceneDescription {
-    let mut desc = file::load("builtin:demo").unwrap();
+    scene_of("builtin:demo")
+}
+
+/// Scene `name` at 48×40 under the same two lights.
+fn scene_of(name: &str) -> SceneDescription {
+    let mut desc = file::load(name).unwrap();
     desc.camera.width = 48;
     desc.camera.height = 40;
     desc.shadows.mode = SoftMode::Exact;
@@ -369,5 +374,56 @@ fn an_overflowing_pair_list_is_reported_and_lookup_mode_refused() {
         .expect("look-up mode is refused")
         .to_string();
     assert!(err.contains("exact mode"), "{err}");
+    engine.context().check_validation().unwrap();
+}
+
+/// An alpha-tested scene: the opaque casters and the alpha-tested ones run
+/// in two rounds inside one recording, and both lights still equal
+/// `Engine::render`'s frame bit for bit.
+#[test]
+fn an_alpha_tested_scene_records_both_caster_rounds() {
+    let desc = scene_of("builtin:fence");
+    let n = (desc.camera.width * desc.camera.height) as usize;
+    let mut own = Engine::new(&ContextOptions::validated()).unwrap();
+    let frame = own.render(&desc, FrameOptions::default()).unwrap();
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let ctx = engine.context();
+    let samples = ctx
+        .create_buffer_with_data(
+            BufferDesc::storage("samples", 32 * n as u64),
+            &gpu_view_samples(&frame),
+        )
+        .unwrap();
+    let targets: Vec<Buffer> = (0..2)
+        .map(|k| {
+            ctx.create_buffer(BufferDesc::storage(format!("target {k}"), 4 * n as u64))
+                .unwrap()
+        })
+        .collect();
+    let lights = [
+        (0, buffer_target(&targets[0])),
+        (1, buffer_target(&targets[1])),
+    ];
+    let source = (|_: &Device, _| {}, buffer_source(&samples));
+    let options = RecordOptions::default();
+    record_one_submission(&mut engine, &desc, &options, source, &lights).unwrap();
+    for (k, t) in targets.iter().enumerate() {
+        let expected: Vec<f32> = frame.dump.visibility[k].iter().map(|v| v[0]).collect();
+        let dark = expected.iter().filter(|&&v| v < 1.0).count();
+        assert!(
+            dark > n / 20,
+            "light {k}: the fence casts shadows ({dark} pixels)"
+        );
+        let got: Vec<f32> = engine.context().read_buffer_staged(t, 0, n).unwrap();
+        let d = differing(&got, &expected);
+        assert_eq!(d, 0, "fence, light {k}: {d} of {n} pixels differ");
+    }
+    // Too small a list in either round is reported, never hidden by the
+    // other round.
+    let lights = [(0, buffer_target(&targets[0]))];
+    let source = (|_: &Device, _| {}, buffer_source(&samples));
+    let tiny = RecordOptions { binned_pairs: 1 };
+    let err = record_one_submission(&mut engine, &desc, &tiny, source, &lights).unwrap_err();
+    assert!(err.to_string().contains("light 0 needed"), "{err}");
     engine.context().check_validation().unwrap();
 }

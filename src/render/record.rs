@@ -45,7 +45,7 @@ use crate::gpu::shared::{GpuViewSample, LightPush};
 use crate::gpu::soft_light::{SoftLight, SoftMode};
 use crate::gpu::visibility_out::OutTarget;
 use crate::scene::file::SceneDescription;
-use crate::vulkan::{vk, Buffer, BufferDesc, CommandRecorder, MemoryLocation};
+use crate::vulkan::{vk, Barrier, Buffer, BufferDesc, CommandRecorder, MemoryLocation};
 use crate::{Error, Result};
 
 use super::inputs::gpu_triangles;
@@ -65,8 +65,8 @@ pub enum ViewSampleSource {
     Buffer {
         /// The buffer (`STORAGE_BUFFER` usage).
         buffer: vk::Buffer,
-        /// Byte offset of the first sample (a multiple of the device's
-        /// `minStorageBufferOffsetAlignment`).
+        /// Byte offset of the first sample: 0 (the passes bind the buffer
+        /// whole; another offset is refused).
         offset: u64,
     },
 }
@@ -144,6 +144,8 @@ pub struct RecordedFrame<'e> {
     nt: u32,
     /// The caller's view-sample buffer (else the engine's view samples).
     samples: Option<Buffer>,
+    /// Bytes between two lights' status slots.
+    stride: u64,
     /// The lights recorded, in order.
     recorded: Vec<usize>,
     recorders: Vec<CommandRecorder>,
@@ -166,11 +168,16 @@ impl Engine {
         options: &RecordOptions,
     ) -> Result<RecordedFrame<'_>> {
         desc.validate()?;
-        if options.binned_pairs == 0 {
-            return Err(Error::InvalidInput(
-                "RecordOptions::binned_pairs must be at least 1".into(),
-            ));
+        let limits = &self.ctx.info().limits;
+        let most = (limits.max_storage_buffer_range as u64 / 4)
+            .min(limits.max_texel_buffer_elements as u64);
+        if options.binned_pairs == 0 || options.binned_pairs as u64 > most {
+            return Err(Error::InvalidInput(format!(
+                "RecordOptions::binned_pairs is {}; this device binds 1 to {most}",
+                options.binned_pairs
+            )));
         }
+        self.shadows.set_clusters(desc.shadows.clusters);
         let eye = desc.camera.eye;
         let lights = frame_lights(desc, eye)?;
         let (_, mut tris) = gpu_inputs(&[], &gpu_triangles(&desc.scene, eye));
@@ -199,24 +206,27 @@ impl Engine {
         }
         // Host-visible, kept across frames (the frame holds the engine, so
         // no other frame uses it meanwhile).
-        let bytes = 16 * lights.len().max(1) as u64;
+        // One slot per light, each at a storage-binding offset.
+        let stride = limits_stride(self.ctx.info().limits.min_storage_buffer_offset_alignment);
+        let bytes = stride * lights.len().max(1) as u64;
         if self.record_status.as_ref().is_none_or(|b| b.size() < bytes) {
             self.record_status = None;
             self.record_status = Some(self.ctx.create_buffer(BufferDesc {
                 name: "record_status".into(),
                 size: bytes,
-                usage: vk::BufferUsageFlags::STORAGE_BUFFER,
+                usage: vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
                 location: MemoryLocation::GpuToCpu,
             })?);
         }
         let status = self.record_status.as_ref().expect("made above");
-        status.write_mapped(0, &vec![0u32; 4 * lights.len().max(1)])?;
+        status.write_mapped(0, &vec![0u32; (bytes / 4) as usize])?;
         Ok(RecordedFrame {
             engine: self,
             lights,
             n,
             nt,
             samples: None,
+            stride,
             recorded: Vec::new(),
             recorders: Vec::new(),
             view_recorded: false,
@@ -271,7 +281,12 @@ impl RecordedFrame<'_> {
     /// submitted to a queue of that family; the images and buffers `source`
     /// names are the engine device's, of the sizes and usages
     /// [`ViewSampleSource`] says, and live until the submission completed;
-    /// `self` is kept until then too.
+    /// `self` is kept until then too. `cmd` is outside a render pass; the
+    /// command buffers holding a frame's recordings run in the order
+    /// recorded, on one queue, never at the same time as each other or as
+    /// another use of the engine (its buffers are shared by all lights).
+    /// The recording replaces the command buffer's bound compute
+    /// pipeline, descriptor sets and push constants.
     pub unsafe fn record_view_samples(
         &mut self,
         cmd: vk::CommandBuffer,
@@ -314,7 +329,9 @@ impl RecordedFrame<'_> {
     /// be submitted.
     ///
     /// # Safety
-    /// As [`RecordedFrame::record_view_samples`], for `cmd` and `target`.
+    /// As [`RecordedFrame::record_view_samples`], for `cmd` and `target`;
+    /// the caller's earlier reads of `target` have finished (a barrier)
+    /// before these commands write it.
     pub unsafe fn record_light(
         &mut self,
         cmd: vk::CommandBuffer,
@@ -342,7 +359,7 @@ impl RecordedFrame<'_> {
             .record_status
             .as_ref()
             .expect("made by record_frame")
-            .slice(16 * k as u64, 16)?;
+            .slice(self.stride * k as u64, 16)?;
         let rec = CommandRecorder::for_caller(ctx.device(), cmd);
         let light_in = (&light.view, light.texels, light.soft.as_ref());
         let mut rec = engine.shadows.record_for_caller(
@@ -372,7 +389,11 @@ impl RecordedFrame<'_> {
         engine
             .visibility_out
             .record(&mut rec, result, light.soft.is_some(), out, &push)?;
-        rec.barrier(crate::vulkan::Barrier::ComputeToHost);
+        // The light ran to its end: word 3 of its slot, for finish().
+        let status = engine.record_status.as_ref().expect("made by record_frame");
+        rec.barrier(Barrier::ComputeToTransfer);
+        rec.fill_buffer(status.slice(self.stride * k as u64 + 12, 4)?, 1)?;
+        rec.barrier(Barrier::AllToHost);
         self.recorders.push(rec);
         self.recorded.push(k);
         Ok(())
@@ -383,20 +404,30 @@ impl RecordedFrame<'_> {
     /// binned pairs passed [`RecordOptions::binned_pairs`] (its target then
     /// holds no shadow: record the frame again with at least the count the
     /// error gives) or that did not run.
+    ///
+    /// A recorded light that has not finished (the caller did not wait, or
+    /// did not submit) is waited for with `vkDeviceWaitIdle` before this
+    /// frame's descriptor sets go, then reported as an error.
     pub fn finish(self) -> Result<RecordReport> {
         let status = self
             .engine
             .record_status
             .as_ref()
             .expect("made by record_frame");
-        let words: Vec<u32> = status.read_mapped(0, 4 * self.lights.len().max(1))?;
+        let slot = (self.stride / 4) as usize;
+        let mut words: Vec<u32> = status.read_mapped(0, slot * self.lights.len().max(1))?;
+        if self.recorded.iter().any(|&k| words[slot * k + 3] != 1) {
+            // Maybe still running: nothing may go before it ends.
+            unsafe { self.engine.ctx.raw().device_wait_idle() }?;
+            words = status.read_mapped(0, slot * self.lights.len().max(1))?;
+        }
         let mut report = RecordReport::default();
         for &k in &self.recorded {
-            let w = &words[4 * k..4 * k + 4];
+            let w = &words[slot * k..slot * k + 4];
             if w[3] != 1 {
                 return Err(Error::Vulkan(format!(
-                    "light {k} was recorded but did not run: finish() must wait for the \
-                     submission"
+                    "light {k} was recorded but did not run to its end: submit the recorded \
+                     commands and wait for them before finish()"
                 )));
             }
             if w[2] != 0 {
@@ -415,4 +446,10 @@ impl RecordedFrame<'_> {
         self.engine.ctx.check_validation()?;
         Ok(report)
     }
+}
+
+/// Bytes per light's status slot: 16, or the device's storage-binding
+/// offset alignment when larger.
+fn limits_stride(alignment: u64) -> u64 {
+    alignment.max(16).next_multiple_of(16)
 }

@@ -43,7 +43,8 @@ impl Barrier {
     ) {
         use vk::AccessFlags as A;
         use vk::PipelineStageFlags as S;
-        let shader_rw = A::SHADER_READ | A::SHADER_WRITE;
+        // Uniform reads too: SHADER_READ does not cover UNIFORM_READ.
+        let shader_rw = A::SHADER_READ | A::SHADER_WRITE | A::UNIFORM_READ;
         let transfer_rw = A::TRANSFER_READ | A::TRANSFER_WRITE;
         match self {
             Barrier::ComputeToCompute => (
