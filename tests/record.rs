@@ -12,7 +12,9 @@ use alias_free_shadows::render::{
     Engine, Frame, FrameOptions, RecordOptions, RecordReport, ViewSampleSource, VisibilityTarget,
 };
 use alias_free_shadows::scene::file::{self, SceneDescription, SoftMode};
-use alias_free_shadows::vulkan::{vk, Buffer, BufferDesc, ContextOptions, Device, ImageDesc};
+use alias_free_shadows::vulkan::{
+    barrier, vk, Buffer, BufferDesc, ContextOptions, Device, GpuContext, ImageDesc,
+};
 use glam::{DVec3, Vec3};
 use std::sync::Arc;
 
@@ -120,34 +122,35 @@ impl Drop for CallerCommands {
 }
 
 /// Moves `image` from `GENERAL` (where the crate's images live) to
-/// `TRANSFER_SRC_OPTIMAL`, its transfer writes visible to transfer reads.
+/// `TRANSFER_SRC_OPTIMAL`, its writes visible after.
 fn to_transfer_src(device: &Device, cmd: vk::CommandBuffer, image: vk::Image) {
-    let barrier = vk::ImageMemoryBarrier::default()
-        .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-        .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
-        .old_layout(vk::ImageLayout::GENERAL)
-        .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
-        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .image(image)
-        .subresource_range(vk::ImageSubresourceRange {
-            aspect_mask: vk::ImageAspectFlags::COLOR,
-            base_mip_level: 0,
-            level_count: 1,
-            base_array_layer: 0,
-            layer_count: 1,
-        });
-    unsafe {
-        device.raw().cmd_pipeline_barrier(
-            cmd,
-            vk::PipelineStageFlags::TRANSFER,
-            vk::PipelineStageFlags::TRANSFER,
-            vk::DependencyFlags::empty(),
-            &[],
-            &[],
-            &[barrier],
+    barrier::image_layout(
+        device.raw(),
+        cmd,
+        image,
+        vk::ImageLayout::GENERAL,
+        vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+        vk::PipelineStageFlags::TRANSFER,
+    );
+}
+
+/// The renderer's buffers: `frame`'s view samples, and two visibility
+/// targets.
+fn renderer_buffers(ctx: &GpuContext, frame: &Frame) -> (Buffer, Vec<Buffer>) {
+    let n = frame.view.samples.len() as u64;
+    let samples = ctx
+        .create_buffer_with_data(
+            BufferDesc::storage("samples", 32 * n),
+            &gpu_view_samples(frame),
         )
-    };
+        .unwrap();
+    let targets = (0..2)
+        .map(|k| {
+            ctx.create_buffer(BufferDesc::storage(format!("target {k}"), 4 * n))
+                .unwrap()
+        })
+        .collect();
+    (samples, targets)
 }
 
 fn differing(a: &[f32], b: &[f32]) -> usize {
@@ -254,18 +257,7 @@ fn two_lights_recorded_into_one_submission_equal_the_engines_frame() {
         .unwrap();
     ctx.upload_image(&ids_image, bytemuck::cast_slice(&ids))
         .unwrap();
-    let targets: Vec<Buffer> = (0..2)
-        .map(|k| {
-            ctx.create_buffer(BufferDesc::storage(format!("target {k}"), 4 * n as u64))
-                .unwrap()
-        })
-        .collect();
-    let samples = ctx
-        .create_buffer_with_data(
-            BufferDesc::storage("samples", 32 * n as u64),
-            &gpu_view_samples(&frame),
-        )
-        .unwrap();
+    let (samples, targets) = renderer_buffers(ctx, &frame);
     let image_target = ctx
         .create_image(&ImageDesc::d2("target image", w, h, vk::Format::R32_SFLOAT))
         .unwrap();
@@ -388,18 +380,7 @@ fn an_alpha_tested_scene_records_both_caster_rounds() {
     let frame = own.render(&desc, FrameOptions::default()).unwrap();
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
     let ctx = engine.context();
-    let samples = ctx
-        .create_buffer_with_data(
-            BufferDesc::storage("samples", 32 * n as u64),
-            &gpu_view_samples(&frame),
-        )
-        .unwrap();
-    let targets: Vec<Buffer> = (0..2)
-        .map(|k| {
-            ctx.create_buffer(BufferDesc::storage(format!("target {k}"), 4 * n as u64))
-                .unwrap()
-        })
-        .collect();
+    let (samples, targets) = renderer_buffers(ctx, &frame);
     let lights = [
         (0, buffer_target(&targets[0])),
         (1, buffer_target(&targets[1])),

@@ -7,7 +7,7 @@ use std::time::Instant;
 use glam::Vec3;
 
 use super::dump_assembly::make_dump;
-use super::inputs::{gpu_triangles, light_view, soft_light};
+use super::inputs::{frame_light, gpu_triangles};
 use super::{Engine, Frame, FrameOptions};
 use crate::cpu::alpha::AlphaTables;
 use crate::gpu::alpha::mark_alpha_triangles;
@@ -222,18 +222,7 @@ impl Engine {
         nt: usize,
     ) -> Result<LightResult> {
         let light = &desc.lights[k];
-        let eye = desc.camera.eye;
-        // Point and directional lights: hard shadows; lights with extent:
-        // the same passes with light-sample bitmasks.
-        let (lv, soft, texels) = match light_view(light, eye) {
-            Some(lv) => (lv, None, desc.shadows.light_texels),
-            None => {
-                let (sl, lv) = soft_light(light, eye, &desc.shadows).ok_or_else(|| {
-                    crate::Error::InvalidInput(format!("light {k} has no samples"))
-                })?;
-                (lv, Some(sl), desc.shadows.soft_light_texels)
-            }
-        };
+        let (lv, soft, texels) = frame_light(desc, k)?;
         self.shadows.set_clusters(desc.shadows.clusters);
         let t = Instant::now();
         let view_buf = self.view.samples();

@@ -62,6 +62,26 @@ pub fn light_view(light: &Light, eye: DVec3) -> Option<LightView> {
     }
 }
 
+/// Light `k` of `desc` as its passes take it: where the passes look from,
+/// the samples of a light with extent (`None`: hard shadows), and the light
+/// texels per face the settings give that kind.
+pub(crate) fn frame_light(
+    desc: &crate::scene::file::SceneDescription,
+    k: usize,
+) -> crate::Result<(LightView, Option<SoftLight>, u32)> {
+    let (light, eye) = (&desc.lights[k], desc.camera.eye);
+    // Point and directional lights: hard shadows; lights with extent: the
+    // same passes with light-sample bitmasks.
+    Ok(match light_view(light, eye) {
+        Some(lv) => (lv, None, desc.shadows.light_texels),
+        None => {
+            let (sl, lv) = soft_light(light, eye, &desc.shadows)
+                .ok_or_else(|| crate::Error::InvalidInput(format!("light {k} has no samples")))?;
+            (lv, Some(sl), desc.shadows.soft_light_texels)
+        }
+    })
+}
+
 /// User view samples and the scene's triangles in GPU form, camera-relative
 /// (the shared first step of [`Engine::hard_shadows`] and
 /// [`Engine::soft_shadows`]).

@@ -33,9 +33,7 @@
 //! occlusion test and [`RecordedFrame::finish`] says so, with the count it
 //! needed. Counters and pass timings are not read back.
 
-use glam::DVec3;
-
-use super::inputs::{light_view, soft_light};
+use super::inputs::frame_light;
 use super::Engine;
 use crate::cpu::alpha::AlphaTables;
 use crate::cpu::light_view::LightView;
@@ -179,7 +177,7 @@ impl Engine {
         }
         self.shadows.set_clusters(desc.shadows.clusters);
         let eye = desc.camera.eye;
-        let lights = frame_lights(desc, eye)?;
+        let lights = frame_lights(desc)?;
         let (_, mut tris) = gpu_inputs(&[], &gpu_triangles(&desc.scene, eye));
         let alpha = AlphaTables::new(&desc.scene);
         mark_alpha_triangles(&mut tris, &alpha);
@@ -236,33 +234,19 @@ impl Engine {
 
 /// The lights of `desc` as the passes take them; lights with extent must
 /// be in exact mode.
-fn frame_lights(desc: &SceneDescription, eye: DVec3) -> Result<Vec<FrameLight>> {
-    desc.lights
-        .iter()
-        .enumerate()
-        .map(|(k, light)| match light_view(light, eye) {
-            Some(view) => Ok(FrameLight {
-                view,
-                texels: desc.shadows.light_texels,
-                soft: None,
-            }),
-            None => {
-                let (sl, view) = soft_light(light, eye, &desc.shadows)
-                    .ok_or_else(|| Error::InvalidInput(format!("light {k} has no samples")))?;
-                if sl.mode != SoftMode::Exact {
-                    return Err(Error::InvalidInput(format!(
-                        "light {k}: a recorded frame computes soft shadows in exact mode only \
-                         (set the shadow settings' mode to exact; {:?} mode sizes its work on \
-                         the host)",
-                        sl.mode
-                    )));
-                }
-                Ok(FrameLight {
-                    view,
-                    texels: desc.shadows.soft_light_texels,
-                    soft: Some(sl),
-                })
+fn frame_lights(desc: &SceneDescription) -> Result<Vec<FrameLight>> {
+    (0..desc.lights.len())
+        .map(|k| {
+            let (view, soft, texels) = frame_light(desc, k)?;
+            if let Some(sl) = soft.as_ref().filter(|sl| sl.mode != SoftMode::Exact) {
+                return Err(Error::InvalidInput(format!(
+                    "light {k}: a recorded frame computes soft shadows in exact mode only \
+                     (set the shadow settings' mode to exact; {:?} mode sizes its work on \
+                     the host)",
+                    sl.mode
+                )));
             }
+            Ok(FrameLight { view, texels, soft })
         })
         .collect()
 }
