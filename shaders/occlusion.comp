@@ -73,10 +73,20 @@ void main() {
         uint count = counts[t];
         uint list_begin = offsets[t] + min(count, sample_chunk * OCC_SAMPLE_CHUNK);
         uint list_end = offsets[t] + min(count, (sample_chunk + 1u) * OCC_SAMPLE_CHUNK);
-        if (list_begin != list_end) {
-            vec2 lo = vec2(texel), hi = lo + 1.0;
-            for (uint k = begin; k < end; k++) {
-                uint pi = texelFetch(tile_pairs_tb, int(k)).x;
+        // Two loops per window of 32 pairs: which pairs' projections may
+        // touch the texel, then the list against those only. On lavapipe a
+        // lane that skips a pair is only masked, so a loop body costs its
+        // whole length whenever any lane of the subgroup runs it; only a
+        // loop's trip count saves time (shared/notes/lavapipe.md), and
+        // most (texel, pair) combinations miss. Lanes without samples stop
+        // at once.
+        bool has_list = list_begin != list_end;
+        vec2 lo = vec2(texel), hi = lo + 1.0;
+        for (uint w0 = begin; has_list && w0 < end; w0 += 32u) {
+            uint window = min(32u, end - w0);
+            uint touching = 0u;
+            for (uint j = 0u; j < window; j++) {
+                uint pi = texelFetch(tile_pairs_tb, int(w0 + j)).x;
                 CasterFace cf;
                 cf.ids = texelFetch(pairs_tb, int(4u * pi));
                 cf.e0 = uintBitsToFloat(texelFetch(pairs_tb, int(4u * pi + 1u)));
@@ -84,16 +94,19 @@ void main() {
                 cf.e2 = uintBitsToFloat(texelFetch(pairs_tb, int(4u * pi + 3u)));
                 uvec2 rmin = uvec2(cf.ids.z & 0xffffu, cf.ids.z >> 16);
                 uvec2 rmax = uvec2(cf.ids.w & 0xffffu, cf.ids.w >> 16);
-                if (any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax))) {
-                    continue;
-                }
-                if (cf.e0.w != 0.0 && !square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, vec2(cf.e0.w, cf.e1.w), lo, hi)) {
-                    continue;
-                }
+                bool touches = !(any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax)))
+                    && (cf.e0.w == 0.0 || square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, vec2(cf.e0.w, cf.e1.w), lo, hi));
+                touching |= touches ? 1u << j : 0u;
+            }
+            while (touching != 0u) {
+                uint j = uint(findLSB(touching));
+                touching &= touching - 1u;
+                uint pi = texelFetch(tile_pairs_tb, int(w0 + j)).x;
+                uint caster = texelFetch(pairs_tb, int(4u * pi)).x;
                 if (sample_chunk == 0u) {
                     visited++; // once per (pair, texel), not per list chunk
                 }
-                uint pl = 5u * cf.ids.x;
+                uint pl = 5u * caster;
                 CasterPlanes cp;
                 cp.support = uintBitsToFloat(texelFetch(planes_tb, int(pl)));
                 cp.edge0 = uintBitsToFloat(texelFetch(planes_tb, int(pl + 1u)));
@@ -103,7 +116,7 @@ void main() {
                 for (uint s = list_begin; s < list_end; s++) {
                     uvec4 qb = texelFetch(list_samples_tb, int(s));
                     vec4 qs = vec4(uintBitsToFloat(qb.xyz), 0.0);
-                    if (qb.w == global_triangle(cf.ids.x)) {
+                    if (qb.w == global_triangle(caster)) {
                         continue; // never onto a sample of the same triangle
                     }
                     tests++;
@@ -116,7 +129,7 @@ void main() {
                         && inside_edge(cp.edge2, cp.side.z, q);
                     if (ALPHA != 0u && hit) {
                         // Where the segment to the light crosses the caster.
-                        uint ti = 3u * cf.ids.x;
+                        uint ti = 3u * caster;
                         vec3 a = uintBitsToFloat(texelFetch(triangles_tb, int(ti)).xyz);
                         vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(ti + 1u)).xyz);
                         uvec4 c = texelFetch(triangles_tb, int(ti + 2u));

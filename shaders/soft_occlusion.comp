@@ -204,6 +204,7 @@ uvec4 past_end(uint block) {
 // soft_occlusion_unsure.comp tests exactly. Nothing is tested here: on
 // lavapipe every branch's code runs for every lane, tested or not.
 #define SURE_BLOCK(K)                                                        \
+    uvec4 unsure##K;                                                         \
     {                                                                        \
         uvec4 sure = bounds_sure(lt0, lf0, uint(K)) & bounds_sure(lt1, lf1, uint(K)) \
             & bounds_sure(lt2, lf2, uint(K)) & bounds_sure(lt3, lf3, uint(K));   \
@@ -218,25 +219,16 @@ uvec4 past_end(uint block) {
         }                                                                    \
         maybe &= ~acc##K;                                                    \
         sure &= maybe;                                                       \
-        uvec4 unsure = maybe & ~sure;                                        \
+        unsure##K = maybe & ~sure;                                           \
         acc##K |= sure;                                                      \
         hit = hit || sure != uvec4(0u);                                      \
-        unsure_bits += bit_count(unsure);                                    \
-        /* One atomic per subgroup: each lane's entry after its     */       \
-        /* neighbours' (lavapipe serializes per-lane atomics).     */        \
-        bool want = unsure != uvec4(0u);                                     \
-        uvec4 ballot = subgroupBallot(want);                                 \
-        uint count = subgroupBallotBitCount(ballot);                         \
-        uint first = 0u;                                                     \
-        if (subgroupElect() && count != 0u) {                                \
-            first = atomicAdd(counters[COUNTER_UNSURE_PAIRS], count);        \
-        }                                                                    \
-        uint e = subgroupBroadcastFirst(first) + subgroupBallotExclusiveBitCount(ballot); \
-        if (want && e < pc.soft.x) {                                         \
-            unsure_list[2u * e] = uvec4(s, ids.x, uint(K), 0u);              \
-            unsure_list[2u * e + 1u] = unsure;                               \
-        }                                                                    \
+        unsure_bits += bit_count(unsure##K);                                 \
+        unsure_blocks |= unsure##K != uvec4(0u) ? 1u << uint(K) : 0u;        \
     }
+
+// SURE mode: block K's unsure bits if K is `k` (a select, not an array:
+// lavapipe keeps locals in registers).
+#define PICK_UNSURE(K) if (k == uint(K)) picked = unsure##K;
 
 #define FLUSH_BLOCK(K)                                                       \
     if (acc##K != init##K) {                                                 \
@@ -329,6 +321,84 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra) {
     return kept_count;
 }
 
+// What pair_planes decided for a (sample, pair): culled before the
+// test counter (outside the pair's region, the sample's own triangle, on
+// its plane or behind a closed caster), culled by a plane that leaves the
+// light's bounding sphere on x's side (counted as a test), or passed.
+#define PAIR_CULLED 0u
+#define PAIR_TESTED 1u
+#define PAIR_PASSED 2u
+struct PairPlanes {
+    uvec4 ids;
+    vec3 a, b, c, n, ns, m0, m1, m2, u0, u1, u2;
+    float sigma, se, d0, d1, d2, d3;
+    uint alpha_record;
+};
+
+// The caster of pair `pi` against sample x (in texel `texel`, on global
+// triangle `own`): its supporting plane facing x (ns, d0) and the planes
+// through x and each edge (u0..u2, d1..d3), in light radii from the
+// light's centre o; x and the caster are turned back by `turn_back`.
+uint pair_planes(uint pi, uvec2 texel, uint own, vec3 x, vec3 o, float inv_r, vec3 ox,
+                 float lo_x, mat3 turn_back, out PairPlanes p) {
+    p.ids = texelFetch(pairs_tb, int(4u * pi));
+    uvec4 ids = p.ids;
+    uvec2 rmin = uvec2(ids.z & 0xffffu, ids.z >> 16);
+    uvec2 rmax = uvec2(ids.w & 0xffffu, ids.w >> 16);
+    if (any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax)) || own == global_triangle(ids.x)) {
+        return PAIR_CULLED; // outside the influence region, or the sample's own triangle
+    }
+    uvec4 t0 = texelFetch(triangles_tb, int(3u * ids.x));
+    vec3 a = uintBitsToFloat(t0.xyz);
+    vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 1u)).xyz);
+    uvec4 c_record = texelFetch(triangles_tb, int(3u * ids.x + 2u));
+    vec3 c = uintBitsToFloat(c_record.xyz);
+    p.alpha_record = c_record.w;
+    if (ROTATION != 0u) {
+        a = unrotate_point(a, turn_back);
+        b = unrotate_point(b, turn_back);
+        c = unrotate_point(c, turn_back);
+    }
+    p.a = a;
+    p.b = b;
+    p.c = c;
+    vec3 n = cross(b - a, c - a);
+    p.n = n;
+    float sx = dot(n, x - a);
+    bool closed = (t0.w & TRIANGLE_CLOSED) != 0u;
+    // x on the plane: the segment does not cross it; x behind a
+    // closed caster: only its front faces could block, and they do not cast.
+    if (sx == 0.0 || isnan(sx) || (closed && sx < 0.0)) {
+        return PAIR_CULLED;
+    }
+    float sigma = sx > 0.0 ? 1.0 : -1.0;
+    p.sigma = sigma;
+    // The supporting plane, facing x: light samples behind it.
+    vec3 ns = (sigma * inversesqrt(dot(n, n))) * n;
+    p.ns = ns;
+    vec3 ao = a - o;
+    p.d0 = dot(ns, ao) * inv_r;
+    float lo_a = EXACT_MASKS ? -1.0 - 1e-5 * (1.0 + length(ao) * inv_r) : -1.0;
+    if (!(p.d0 > lo_a)) {
+        return PAIR_TESTED; // the whole light is on x's side of T
+    }
+    // The planes through x and each edge, facing out of T's
+    // cone from x (one determinant orients all three alike).
+    vec3 m0 = cross(a - x, b - x), m1 = cross(b - x, c - x), m2 = cross(c - x, a - x);
+    p.m0 = m0;
+    p.m1 = m1;
+    p.m2 = m2;
+    float se = dot(m0, c - x) < 0.0 ? -1.0 : 1.0;
+    p.se = se;
+    p.u0 = (-se * inversesqrt(dot(m0, m0))) * m0;
+    p.d1 = dot(p.u0, ox) * inv_r;
+    p.u1 = (-se * inversesqrt(dot(m1, m1))) * m1;
+    p.d2 = dot(p.u1, ox) * inv_r;
+    p.u2 = (-se * inversesqrt(dot(m2, m2))) * m2;
+    p.d3 = dot(p.u2, ox) * inv_r;
+    return p.d1 > lo_x && p.d2 > lo_x && p.d3 > lo_x ? PAIR_PASSED : PAIR_TESTED;
+}
+
 void main() {
     OcclusionUnit un = occlusion_unit();
     uint s = un.slot;
@@ -366,95 +436,97 @@ void main() {
         float delta_x = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(x) + length(ox)) * inv_r;
 #endif
         FOR_BLOCKS(ACC_BLOCK)
-        for (uint k = begin; k < end; k++) {
-            uint pi = kept_pairs[k];
-            uvec4 ids = texelFetch(pairs_tb, int(4u * pi));
-            uvec2 rmin = uvec2(ids.z & 0xffffu, ids.z >> 16);
-            uvec2 rmax = uvec2(ids.w & 0xffffu, ids.w >> 16);
-            if (any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax)) || qb.w == global_triangle(ids.x)) {
-                continue; // outside the influence region, or the sample's own triangle
+        // Two loops per window of 32 pairs: the cheap rules of pair_planes
+        // for each pair, then the look-ups (or exact tests) for the pairs
+        // that passed, one loop iteration each. On lavapipe a lane's
+        // `continue` only masks it, so a loop body costs its whole length
+        // for every iteration any lane runs; only a loop's trip count
+        // saves time (shared/notes/lavapipe.md). Most pairs fail the
+        // cheap rules, so the expensive part now runs for the pairs that
+        // pass (the most of any lane of the subgroup), not for every pair.
+        bool full = false;
+        for (uint w0 = begin; w0 < end && !full; w0 += 32u) {
+            uint window = min(32u, end - w0);
+            uint passed = 0u;
+            for (uint j = 0u; j < window; j++) {
+                PairPlanes p;
+                uint rule = pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
+                tests += rule >= PAIR_TESTED ? 1u : 0u;
+                passed |= rule == PAIR_PASSED ? 1u << j : 0u;
             }
-            uvec4 t0 = texelFetch(triangles_tb, int(3u * ids.x));
-            vec3 a = uintBitsToFloat(t0.xyz);
-            vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 1u)).xyz);
-            uvec4 c_record = texelFetch(triangles_tb, int(3u * ids.x + 2u));
-            vec3 c = uintBitsToFloat(c_record.xyz);
-            if (ROTATION != 0u) {
-                a = unrotate_point(a, turn_back);
-                b = unrotate_point(b, turn_back);
-                c = unrotate_point(c, turn_back);
-            }
-            vec3 n = cross(b - a, c - a);
-            float sx = dot(n, x - a);
-            bool closed = (t0.w & TRIANGLE_CLOSED) != 0u;
-            // x on the plane: the segment does not cross it; x behind a
-            // closed caster: only its front faces could block, and they do not cast.
-            if (sx == 0.0 || isnan(sx) || (closed && sx < 0.0)) {
-                continue;
-            }
-            tests++;
-            float sigma = sx > 0.0 ? 1.0 : -1.0;
-            // The supporting plane, facing x: light samples behind it.
-            vec3 ns = (sigma * inversesqrt(dot(n, n))) * n;
-            vec3 ao = a - o;
-            float d0 = dot(ns, ao) * inv_r;
-            float lo_a = EXACT_MASKS ? -1.0 - 1e-5 * (1.0 + length(ao) * inv_r) : -1.0;
-            if (!(d0 > lo_a)) {
-                continue; // the whole light is on x's side of T
-            }
-            // The planes through x and each edge, facing out of T's
-            // cone from x (one determinant orients all three alike).
-            vec3 m0 = cross(a - x, b - x), m1 = cross(b - x, c - x), m2 = cross(c - x, a - x);
-            float se = dot(m0, c - x) < 0.0 ? -1.0 : 1.0;
-            vec3 u0 = (-se * inversesqrt(dot(m0, m0))) * m0;
-            float d1 = dot(u0, ox) * inv_r;
-            if (!(d1 > lo_x)) continue;
-            vec3 u1 = (-se * inversesqrt(dot(m1, m1))) * m1;
-            float d2 = dot(u1, ox) * inv_r;
-            if (!(d2 > lo_x)) continue;
-            vec3 u2 = (-se * inversesqrt(dot(m2, m2))) * m2;
-            float d3 = dot(u2, ox) * inv_r;
-            if (!(d3 > lo_x)) continue;
-            bool hit = false;
+            while (passed != 0u && !full) {
+                uint j = uint(findLSB(passed));
+                passed &= passed - 1u;
+                PairPlanes p;
+                pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
+                uvec4 ids = p.ids;
+                vec3 a = p.a, b = p.b, c = p.c, n = p.n, ns = p.ns, ao = p.a - o;
+                vec3 m0 = p.m0, m1 = p.m1, m2 = p.m2, u0 = p.u0, u1 = p.u1, u2 = p.u2;
+                float sigma = p.sigma, se = p.se, d0 = p.d0, d1 = p.d1, d2 = p.d2, d3 = p.d3;
+                bool hit = false;
 #if SURE
-            float delta_a = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(a) + length(ao)) * inv_r;
-            bool rounding_too_large = max(delta_a, delta_x) > pc.soft_light.w;
-            uint res = pc.soft.z;
-            uint lt0 = lut_texel(lut_normal_cell(ns, res), d0, res), lf0 = bound_flags(d0);
-            uint lt1 = lut_texel(lut_normal_cell(u0, res), d1, res), lf1 = bound_flags(d1);
-            uint lt2 = lut_texel(lut_normal_cell(u1, res), d2, res), lf2 = bound_flags(d2);
-            uint lt3 = lut_texel(lut_normal_cell(u2, res), d3, res), lf3 = bound_flags(d3);
-            FOR_BLOCKS(SURE_BLOCK)
+                float delta_a = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(a) + length(ao)) * inv_r;
+                bool rounding_too_large = max(delta_a, delta_x) > pc.soft_light.w;
+                uint res = pc.soft.z;
+                uint lt0 = lut_texel(lut_normal_cell(ns, res), d0, res), lf0 = bound_flags(d0);
+                uint lt1 = lut_texel(lut_normal_cell(u0, res), d1, res), lf1 = bound_flags(d1);
+                uint lt2 = lut_texel(lut_normal_cell(u1, res), d2, res), lf2 = bound_flags(d2);
+                uint lt3 = lut_texel(lut_normal_cell(u2, res), d3, res), lf3 = bound_flags(d3);
+                uint unsure_blocks = 0u;
+                FOR_BLOCKS(SURE_BLOCK)
+                // The pair's entries, one per block with unsure bits, after
+                // the subgroup's lanes before it: one atomic per subgroup
+                // and pair (lavapipe serializes per-lane atomics), and the
+                // writes in a loop that runs as often as the most blocks
+                // any lane has (a masked write costs as much as a real one).
+                uint entries = uint(bitCount(unsure_blocks));
+                uint total = subgroupAdd(entries);
+                uint first = 0u;
+                if (subgroupElect() && total != 0u) {
+                    first = atomicAdd(counters[COUNTER_UNSURE_PAIRS], total);
+                }
+                uint e = subgroupBroadcastFirst(first) + subgroupExclusiveAdd(entries);
+                while (unsure_blocks != 0u) {
+                    uint k = uint(findLSB(unsure_blocks));
+                    unsure_blocks &= unsure_blocks - 1u;
+                    uvec4 picked = unsure0;
+                    FOR_BLOCKS(PICK_UNSURE)
+                    if (e < pc.soft.x) {
+                        unsure_list[2u * e] = uvec4(s, ids.x, k, 0u);
+                        unsure_list[2u * e + 1u] = picked;
+                    }
+                    e++;
+                }
 #elif !EXACT
-            uint c0 = plane_code(ns, d0), c1 = plane_code(u0, d1);
-            uint c2 = plane_code(u1, d2), c3 = plane_code(u2, d3);
-            FOR_BLOCKS(LUT_BLOCK)
+                uint c0 = plane_code(ns, d0), c1 = plane_code(u0, d1);
+                uint c2 = plane_code(u1, d2), c3 = plane_code(u2, d3);
+                FOR_BLOCKS(LUT_BLOCK)
 #else
-            // Every light sample of the block against the four planes.
-            uint base = first_block * 128u;
-            uint n_block = min(pc.soft.y - min(base, pc.soft.y), 128u);
-            uvec4 bits = uvec4(0u);
-            for (uint j = 0u; j < n_block; j++) {
-                vec3 l = light_samples[base + j].xyz;
-                bool blocked = exact_blocks(l, n, sigma, a, x, m0, m1, m2, se);
-                if (ALPHA != 0u && blocked) {
-                    vec2 bc = segment_barycentrics(x, l - x, a, b, c);
-                    blocked = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, c_record.w, bc);
+                // Every light sample of the block against the four planes.
+                uint base = first_block * 128u;
+                uint n_block = min(pc.soft.y - min(base, pc.soft.y), 128u);
+                uvec4 bits = uvec4(0u);
+                for (uint jl = 0u; jl < n_block; jl++) {
+                    vec3 l = light_samples[base + jl].xyz;
+                    bool blocked = exact_blocks(l, n, sigma, a, x, m0, m1, m2, se);
+                    if (ALPHA != 0u && blocked) {
+                        vec2 bc = segment_barycentrics(x, l - x, a, b, c);
+                        blocked = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, p.alpha_record, bc);
+                    }
+                    if (blocked) {
+                        uint wd = jl >> 5u, bit = 1u << (jl & 31u);
+                        bits |= uvec4(wd == 0u ? bit : 0u, wd == 1u ? bit : 0u, wd == 2u ? bit : 0u, wd == 3u ? bit : 0u);
+                    }
                 }
-                if (blocked) {
-                    uint w = j >> 5u, bit = 1u << (j & 31u);
-                    bits |= uvec4(w == 0u ? bit : 0u, w == 1u ? bit : 0u, w == 2u ? bit : 0u, w == 3u ? bit : 0u);
-                }
-            }
-            acc0 |= bits;
-            hit = bits != uvec4(0u);
+                acc0 |= bits;
+                hit = bits != uvec4(0u);
 #endif
-            if (hit) {
-                blocking++;
-                uvec4 all_blocks = uvec4(0xffffffffu);
-                FOR_BLOCKS(AND_BLOCK)
-                if (all(equal(all_blocks, uvec4(0xffffffffu)))) {
-                    break; // every light sample is blocked: nothing left to find
+                if (hit) {
+                    blocking++;
+                    uvec4 all_blocks = uvec4(0xffffffffu);
+                    FOR_BLOCKS(AND_BLOCK)
+                    // Every light sample is blocked: nothing left to find.
+                    full = all(equal(all_blocks, uvec4(0xffffffffu)));
                 }
             }
         }

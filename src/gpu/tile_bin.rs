@@ -31,17 +31,18 @@ use crate::Result;
 /// loop iterations per invocation.
 pub const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
 
-/// Pairs per soft occlusion work unit in look-up mode with `blocks`
-/// 128-sample blocks: each test may loop over every light sample the table
-/// leaves unsure (at most 128 and 4 word steps per block), so that
-/// `chunk · (1 + 132 · blocks)` stays below 65535 loop iterations.
-pub const fn sure_pair_chunk(blocks: u32) -> (u32, u32) {
-    (2, 65535 / (1 + 132 * blocks))
-}
+/// Pairs per soft occlusion work unit in look-up mode (any block count).
+/// Its loops run at most twice per pair (the cheap rules, then the
+/// look-ups of the pairs that pass) plus once per window of 32 pairs and
+/// per 64 pairs compacted, far below lavapipe's 65535 loop iterations per
+/// invocation: the bound is the shared memory that holds a unit's pairs
+/// (`MAX_KEPT`). The unsure list holds at most one entry per lane, pair
+/// and block of a unit (`SoftOcclusionPass::capacity`).
+pub const SURE_PAIR_CHUNK: (u32, u32) = (2, 512);
 
 /// Soft occlusion compacts a unit's pairs into `MAX_KEPT` (512) slots of
 /// shared memory (soft_occlusion.comp): no chunk may be longer.
-const _: () = assert!(SOFT_PAIR_CHUNK.1 <= 512 && sure_pair_chunk(1).1 <= 512);
+const _: () = assert!(SOFT_PAIR_CHUNK.1 <= 512 && SURE_PAIR_CHUNK.1 <= 512);
 
 /// The binning passes' pipelines and the per-tile lists they build.
 pub struct TileBinPass {
@@ -54,7 +55,7 @@ pub struct TileBinPass {
     /// Soft shadows' work units: one lane per listed sample of the tile.
     units_soft: ComputePipeline,
     /// The same with the look-up mode's chunks, per block count (1 to 8).
-    units_sure: Vec<ComputePipeline>,
+    units_sure: ComputePipeline,
     scan: ScanPass,
     /// A caller's recording: the occlusion passes' indirect workgroup counts
     /// from the scans' totals (`record_args.comp`).
@@ -134,16 +135,12 @@ impl TileBinPass {
                 &[sb; 3],
                 &[SOFT_PAIR_CHUNK],
             )?,
-            units_sure: (1..=8)
-                .map(|b| {
-                    make(
-                        "tile_bin_units_sure",
-                        shaders::TILE_BIN_UNITS_SAMPLE_LANES,
-                        &[sb; 3],
-                        &[sure_pair_chunk(b)],
-                    )
-                })
-                .collect::<Result<_>>()?,
+            units_sure: make(
+                "tile_bin_units_sure",
+                shaders::TILE_BIN_UNITS_SAMPLE_LANES,
+                &[sb; 3],
+                &[SURE_PAIR_CHUNK],
+            )?,
             scan: ScanPass::new(ctx)?,
             args: make("record_args", shaders::RECORD_ARGS, &[sb; 5], &[])?,
             dispatch_args: {
@@ -241,9 +238,7 @@ impl TileBinPass {
             rec.barrier(Barrier::ComputeToCompute);
             let (units, per_tile) = match soft {
                 None => (&self.units_hard, &lists.tile_max_len),
-                Some(sl) if sl.mode == SoftMode::Lut => {
-                    (&self.units_sure[sl.blocks() - 1], &lists.offsets)
-                }
+                Some(sl) if sl.mode == SoftMode::Lut => (&self.units_sure, &lists.offsets),
                 Some(_) => (&self.units_soft, &lists.offsets),
             };
             let bindings = [
