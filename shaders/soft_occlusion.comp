@@ -20,8 +20,6 @@
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_ballot : require
-#extension GL_KHR_shader_subgroup_shuffle : require
-#extension GL_KHR_shader_subgroup_vote : require
 #define LIGHT_SAMPLES_BINDING 10
 #include "soft_common.glsl"
 #include "clusters_common.glsl"
@@ -169,10 +167,14 @@ uvec4 bounds_maybe(uint texel, uint flags, uint block) {
 
 // LUT mode, block K: the AND of the four planes' bits, ORed into acc_K.
 #define LUT_BLOCK(K)                                                         \
-    uvec4 got##K = lut_bits(c0, uint(K));                                    \
-    if (got##K != uvec4(0u)) got##K &= lut_bits(c1, uint(K));               \
-    if (got##K != uvec4(0u)) got##K &= lut_bits(c2, uint(K));               \
-    if (got##K != uvec4(0u)) got##K &= lut_bits(c3, uint(K));
+    {                                                                        \
+        uvec4 bits = lut_bits(c0, uint(K));                             \
+        if (bits != uvec4(0u)) bits &= lut_bits(c1, uint(K));           \
+        if (bits != uvec4(0u)) bits &= lut_bits(c2, uint(K));           \
+        if (bits != uvec4(0u)) bits &= lut_bits(c3, uint(K));           \
+        acc##K |= bits;                                                      \
+        hit = hit || bits != uvec4(0u);                                      \
+    }
 
 // Bits past the light's samples in block `block` (set from the start: the
 // resolve ignores them, and a sample whose masks are all ones is done).
@@ -202,7 +204,7 @@ uvec4 past_end(uint block) {
 // soft_occlusion_unsure.comp tests exactly. Nothing is tested here: on
 // lavapipe every branch's code runs for every lane, tested or not.
 #define SURE_BLOCK(K)                                                        \
-    uvec4 unsure##K, got##K;                                                 \
+    uvec4 unsure##K;                                                         \
     {                                                                        \
         uvec4 sure = bounds_sure(lt0, lf0, uint(K)) & bounds_sure(lt1, lf1, uint(K)) \
             & bounds_sure(lt2, lf2, uint(K)) & bounds_sure(lt3, lf3, uint(K));   \
@@ -215,10 +217,11 @@ uvec4 past_end(uint block) {
         if (ALPHA != 0u) {                                                   \
             sure = uvec4(0u); /* opaque or not: the unsure pass decides */   \
         }                                                                    \
-        maybe &= busy ? ~seen##K : uvec4(0u);                                \
+        maybe &= ~acc##K;                                                    \
         sure &= maybe;                                                       \
         unsure##K = maybe & ~sure;                                           \
-        got##K = sure;                                                       \
+        acc##K |= sure;                                                      \
+        hit = hit || sure != uvec4(0u);                                      \
         unsure_bits += bit_count(unsure##K);                                 \
         unsure_blocks |= unsure##K != uvec4(0u) ? 1u << uint(K) : 0u;        \
     }
@@ -240,15 +243,6 @@ uvec4 past_end(uint block) {
 #define INIT_BLOCK(K) uvec4 init##K = past_end(first_block + uint(K));
 #define ACC_BLOCK(K) uvec4 acc##K = init##K;
 #define AND_BLOCK(K) all_blocks &= acc##K;
-// The item's owner's bits so far, and whether the item found new ones.
-#define SEEN_BLOCK(K) uvec4 seen##K = subgroupShuffle(acc##K, owner);
-#define FOUND_BLOCK(K) found = found || got##K != uvec4(0u);
-// Lane L's new bits, into this lane's mask when this lane owns L's item.
-#define MERGE_BLOCK(K)                                                       \
-    {                                                                        \
-        uvec4 g = subgroupShuffle(got##K, L);                                \
-        if (from_l == lane) acc##K |= g;                                     \
-    }
 
 // View-sample clusters per chunk: the unit's pairs that this workgroup's
 // own 64 samples can need (by the tile rules of clusters_common.glsl on
@@ -325,19 +319,6 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra) {
     dropped = local_dropped;
     penumbra = local_penumbra;
     return kept_count;
-}
-
-// The position of the k-th (from 0) set bit of m (k < bitCount(m)).
-uint nth_set_bit(uint m, uint k) {
-    uint pos = 0u;
-    for (uint width = 16u; width != 0u; width >>= 1u) {
-        uint low = uint(bitCount((m >> pos) & ((1u << width) - 1u)));
-        if (k >= low) {
-            k -= low;
-            pos += width;
-        }
-    }
-    return pos;
 }
 
 // What pair_planes decided for a (sample, pair): culled before the
@@ -442,148 +423,113 @@ void main() {
         turn_back = unrotation(pixel_angle(texelFetch(list_sample_index_tb, int(s)).x));
         x = unrotate_point(x, turn_back);
     }
-    // Every lane runs the loops below, with a sample or not (those without
-    // pass no pair), so that the subgroup can share out its work.
-    FOR_BLOCKS(INIT_BLOCK)
-    vec3 ox = x - o;
-    // Exact mode rejects a plane only beyond its rounding (1e-5 of the
-    // distance in light radii), so that it never drops a light sample that
-    // the per-sample test would block.
-    float lo_x = EXACT_MASKS ? -1.0 - 1e-5 * (1.0 + length(ox) * inv_r) : -1.0;
-    FOR_BLOCKS(ACC_BLOCK)
-    // Per window of 32 pairs, two steps: each lane applies the cheap rules
-    // of pair_planes to its own sample and every pair; then the (sample,
-    // pair) items that passed, over the whole subgroup, are dealt out to
-    // its lanes in rounds, one item per lane, for the look-ups (or exact
-    // tests), and each item's new bits go back to its sample's lane. On
-    // lavapipe a lane that skips work is only masked: a loop body costs
-    // its whole length whenever any lane of the subgroup runs it, and only
-    // a loop's trip count saves time (shared/notes/lavapipe.md). Most
-    // items fail the cheap rules, unevenly over the lanes: dealt out, the
-    // expensive part runs about (items / lanes) times, not as often as
-    // the busiest lane's items or as the pairs.
-    bool full = !un.has_sample;
-    uint lane = gl_SubgroupInvocationID;
-    for (uint w0 = begin; w0 < end; w0 += 32u) {
-        if (subgroupAll(full)) {
-            break; // every sample's light is blocked, or there is none
-        }
-        uint window = min(32u, end - w0);
-        uint passed = 0u;
-        for (uint j = 0u; j < window; j++) {
-            PairPlanes p;
-            uint rule = pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
-            tests += !full && rule >= PAIR_TESTED ? 1u : 0u;
-            passed |= !full && rule == PAIR_PASSED ? 1u << j : 0u;
-        }
-        // Item t is the (t - before)-th passed pair of the lane whose
-        // range [before, before + mine) holds it.
-        uint mine = uint(bitCount(passed));
-        uint before = subgroupExclusiveAdd(mine);
-        uint total = subgroupAdd(mine);
-        for (uint r0 = 0u; r0 < total; r0 += gl_SubgroupSize) {
-            uint t = r0 + lane;
-            bool busy = t < total;
-            uint owner = 0u;
-            for (uint L = 1u; L < gl_SubgroupSize; L++) {
-                owner += subgroupShuffle(before, L) <= t ? 1u : 0u;
-            }
-            owner = busy ? owner : lane;
-            uint j = nth_set_bit(subgroupShuffle(passed, owner), t - subgroupShuffle(before, owner));
-            // The owner's sample, as the owner computed it.
-            uint item_slot = subgroupShuffle(s, owner);
-            vec3 item_x = subgroupShuffle(x, owner);
-            mat3 item_turn = mat3(1.0);
-            if (ROTATION != 0u) {
-                item_turn = mat3(subgroupShuffle(turn_back[0], owner), subgroupShuffle(turn_back[1], owner),
-                                 subgroupShuffle(turn_back[2], owner));
-            }
-            vec3 item_ox = item_x - o;
-            float item_lo_x = EXACT_MASKS ? -1.0 - 1e-5 * (1.0 + length(item_ox) * inv_r) : -1.0;
-            FOR_BLOCKS(SEEN_BLOCK)
-            PairPlanes p;
-            pair_planes(kept_pairs[w0 + j], subgroupShuffle(texel, owner), subgroupShuffle(qb.w, owner),
-                        item_x, o, inv_r, item_ox, item_lo_x, item_turn, p);
-            uvec4 ids = p.ids;
-            vec3 a = p.a, b = p.b, c = p.c, n = p.n, ns = p.ns, ao = p.a - o;
-            vec3 m0 = p.m0, m1 = p.m1, m2 = p.m2, u0 = p.u0, u1 = p.u1, u2 = p.u2;
-            float sigma = p.sigma, se = p.se, d0 = p.d0, d1 = p.d1, d2 = p.d2, d3 = p.d3;
-#if SURE
-            // The rounding bounds of the per-sample test against the planes
-            // through x and T's plane, in light radii: 64 f32 ulps of the
-            // magnitudes involved.
-            float delta_x = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(item_x) + length(item_ox)) * inv_r;
-            float delta_a = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(a) + length(ao)) * inv_r;
-            bool rounding_too_large = max(delta_a, delta_x) > pc.soft_light.w;
-            uint res = pc.soft.z;
-            uint lt0 = lut_texel(lut_normal_cell(ns, res), d0, res), lf0 = bound_flags(d0);
-            uint lt1 = lut_texel(lut_normal_cell(u0, res), d1, res), lf1 = bound_flags(d1);
-            uint lt2 = lut_texel(lut_normal_cell(u1, res), d2, res), lf2 = bound_flags(d2);
-            uint lt3 = lut_texel(lut_normal_cell(u2, res), d3, res), lf3 = bound_flags(d3);
-            uint unsure_blocks = 0u;
-            FOR_BLOCKS(SURE_BLOCK)
-            // The item's entries, one per block with unsure bits, after the
-            // subgroup's lanes before it: one atomic per subgroup and round
-            // (lavapipe serializes per-lane atomics), and the writes in a
-            // loop that runs as often as the most blocks any lane has.
-            uint entries = uint(bitCount(unsure_blocks));
-            uint first = 0u;
-            uint all_entries = subgroupAdd(entries);
-            if (subgroupElect() && all_entries != 0u) {
-                first = atomicAdd(counters[COUNTER_UNSURE_PAIRS], all_entries);
-            }
-            uint e = subgroupBroadcastFirst(first) + subgroupExclusiveAdd(entries);
-            while (unsure_blocks != 0u) {
-                uint k = uint(findLSB(unsure_blocks));
-                unsure_blocks &= unsure_blocks - 1u;
-                uvec4 picked = unsure0;
-                FOR_BLOCKS(PICK_UNSURE)
-                if (e < pc.soft.x) {
-                    unsure_list[2u * e] = uvec4(item_slot, ids.x, k, 0u);
-                    unsure_list[2u * e + 1u] = picked;
-                }
-                e++;
-            }
-#elif !EXACT
-            uint c0 = plane_code(ns, d0), c1 = plane_code(u0, d1);
-            uint c2 = plane_code(u1, d2), c3 = plane_code(u2, d3);
-            FOR_BLOCKS(LUT_BLOCK)
-#else
-            // Every light sample of the block against the four planes.
-            uint base = first_block * 128u;
-            uint n_block = busy ? min(pc.soft.y - min(base, pc.soft.y), 128u) : 0u;
-            uvec4 got0 = uvec4(0u);
-            for (uint jl = 0u; jl < n_block; jl++) {
-                vec3 l = light_samples[base + jl].xyz;
-                bool blocked = exact_blocks(l, n, sigma, a, item_x, m0, m1, m2, se);
-                if (ALPHA != 0u && blocked) {
-                    vec2 bc = segment_barycentrics(item_x, l - item_x, a, b, c);
-                    blocked = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, p.alpha_record, bc);
-                }
-                if (blocked) {
-                    uint wd = jl >> 5u, bit = 1u << (jl & 31u);
-                    got0 |= uvec4(wd == 0u ? bit : 0u, wd == 1u ? bit : 0u, wd == 2u ? bit : 0u, wd == 3u ? bit : 0u);
-                }
-            }
-#endif
-            bool found = false;
-            FOR_BLOCKS(FOUND_BLOCK)
-            found = found && busy;
-            blocking += found ? 1u : 0u;
-            uint from = found ? owner : 0xffffffffu;
-            uint merges = subgroupAny(found) ? gl_SubgroupSize : 0u;
-            for (uint L = 0u; L < merges; L++) {
-                uint from_l = subgroupShuffle(from, L);
-                FOR_BLOCKS(MERGE_BLOCK)
-            }
-            if (un.has_sample) {
-                uvec4 all_blocks = uvec4(0xffffffffu);
-                FOR_BLOCKS(AND_BLOCK)
-                full = all(equal(all_blocks, uvec4(0xffffffffu)));
-            }
-        }
-    }
     if (un.has_sample) {
+        FOR_BLOCKS(INIT_BLOCK)
+        vec3 ox = x - o;
+        // Exact mode rejects a plane only beyond its rounding (1e-5 of
+        // the distance in light radii), so that it never drops a light
+        // sample that the per-sample test would block.
+        float lo_x = EXACT_MASKS ? -1.0 - 1e-5 * (1.0 + length(ox) * inv_r) : -1.0;
+#if SURE
+        // The rounding bound of the per-sample test against the planes
+        // through x, in light radii: 64 f32 ulps of the magnitudes involved.
+        float delta_x = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(x) + length(ox)) * inv_r;
+#endif
+        FOR_BLOCKS(ACC_BLOCK)
+        // Two loops per window of 32 pairs: the cheap rules of pair_planes
+        // for each pair, then the look-ups (or exact tests) for the pairs
+        // that passed, one loop iteration each. On lavapipe a lane's
+        // `continue` only masks it, so a loop body costs its whole length
+        // for every iteration any lane runs; only a loop's trip count
+        // saves time (shared/notes/lavapipe.md). Most pairs fail the
+        // cheap rules, so the expensive part now runs for the pairs that
+        // pass (the most of any lane of the subgroup), not for every pair.
+        bool full = false;
+        for (uint w0 = begin; w0 < end && !full; w0 += 32u) {
+            uint window = min(32u, end - w0);
+            uint passed = 0u;
+            for (uint j = 0u; j < window; j++) {
+                PairPlanes p;
+                uint rule = pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
+                tests += rule >= PAIR_TESTED ? 1u : 0u;
+                passed |= rule == PAIR_PASSED ? 1u << j : 0u;
+            }
+            while (passed != 0u && !full) {
+                uint j = uint(findLSB(passed));
+                passed &= passed - 1u;
+                PairPlanes p;
+                pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
+                uvec4 ids = p.ids;
+                vec3 a = p.a, b = p.b, c = p.c, n = p.n, ns = p.ns, ao = p.a - o;
+                vec3 m0 = p.m0, m1 = p.m1, m2 = p.m2, u0 = p.u0, u1 = p.u1, u2 = p.u2;
+                float sigma = p.sigma, se = p.se, d0 = p.d0, d1 = p.d1, d2 = p.d2, d3 = p.d3;
+                bool hit = false;
+#if SURE
+                float delta_a = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(a) + length(ao)) * inv_r;
+                bool rounding_too_large = max(delta_a, delta_x) > pc.soft_light.w;
+                uint res = pc.soft.z;
+                uint lt0 = lut_texel(lut_normal_cell(ns, res), d0, res), lf0 = bound_flags(d0);
+                uint lt1 = lut_texel(lut_normal_cell(u0, res), d1, res), lf1 = bound_flags(d1);
+                uint lt2 = lut_texel(lut_normal_cell(u1, res), d2, res), lf2 = bound_flags(d2);
+                uint lt3 = lut_texel(lut_normal_cell(u2, res), d3, res), lf3 = bound_flags(d3);
+                uint unsure_blocks = 0u;
+                FOR_BLOCKS(SURE_BLOCK)
+                // The pair's entries, one per block with unsure bits, after
+                // the subgroup's lanes before it: one atomic per subgroup
+                // and pair (lavapipe serializes per-lane atomics), and the
+                // writes in a loop that runs as often as the most blocks
+                // any lane has (a masked write costs as much as a real one).
+                uint entries = uint(bitCount(unsure_blocks));
+                uint total = subgroupAdd(entries);
+                uint first = 0u;
+                if (subgroupElect() && total != 0u) {
+                    first = atomicAdd(counters[COUNTER_UNSURE_PAIRS], total);
+                }
+                uint e = subgroupBroadcastFirst(first) + subgroupExclusiveAdd(entries);
+                while (unsure_blocks != 0u) {
+                    uint k = uint(findLSB(unsure_blocks));
+                    unsure_blocks &= unsure_blocks - 1u;
+                    uvec4 picked = unsure0;
+                    FOR_BLOCKS(PICK_UNSURE)
+                    if (e < pc.soft.x) {
+                        unsure_list[2u * e] = uvec4(s, ids.x, k, 0u);
+                        unsure_list[2u * e + 1u] = picked;
+                    }
+                    e++;
+                }
+#elif !EXACT
+                uint c0 = plane_code(ns, d0), c1 = plane_code(u0, d1);
+                uint c2 = plane_code(u1, d2), c3 = plane_code(u2, d3);
+                FOR_BLOCKS(LUT_BLOCK)
+#else
+                // Every light sample of the block against the four planes.
+                uint base = first_block * 128u;
+                uint n_block = min(pc.soft.y - min(base, pc.soft.y), 128u);
+                uvec4 bits = uvec4(0u);
+                for (uint jl = 0u; jl < n_block; jl++) {
+                    vec3 l = light_samples[base + jl].xyz;
+                    bool blocked = exact_blocks(l, n, sigma, a, x, m0, m1, m2, se);
+                    if (ALPHA != 0u && blocked) {
+                        vec2 bc = segment_barycentrics(x, l - x, a, b, c);
+                        blocked = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, p.alpha_record, bc);
+                    }
+                    if (blocked) {
+                        uint wd = jl >> 5u, bit = 1u << (jl & 31u);
+                        bits |= uvec4(wd == 0u ? bit : 0u, wd == 1u ? bit : 0u, wd == 2u ? bit : 0u, wd == 3u ? bit : 0u);
+                    }
+                }
+                acc0 |= bits;
+                hit = bits != uvec4(0u);
+#endif
+                if (hit) {
+                    blocking++;
+                    uvec4 all_blocks = uvec4(0xffffffffu);
+                    FOR_BLOCKS(AND_BLOCK)
+                    // Every light sample is blocked: nothing left to find.
+                    full = all(equal(all_blocks, uvec4(0xffffffffu)));
+                }
+            }
+        }
         FOR_BLOCKS(FLUSH_BLOCK)
     }
     uint sum_tests = subgroupAdd(tests);
