@@ -15,7 +15,9 @@
 // pairs, chunk of OCC_SAMPLE_CHUNK list entries). lavapipe (llvmpipe) ends
 // every loop of an invocation silently once all its loops together have run
 // 65535 iterations (LP_MAX_TGSI_LOOP_ITERATIONS), so each invocation's work
-// is bounded: at most OCC_PAIR_CHUNK * (OCC_SAMPLE_CHUNK + 1) iterations.
+// is bounded: at most about OCC_PAIR_CHUNK * (OCC_SAMPLE_CHUNK + 2) iterations
+// (occlusion.comp: a loop over the chunk's pairs, then the list for each
+// pair that touches the texel).
 // Specialization constants: the soft exact mode loops over 128 light
 // samples per test, so its chunks are smaller.
 layout(constant_id = 2) const uint OCC_PAIR_CHUNK = 64u;
