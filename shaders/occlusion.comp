@@ -73,17 +73,13 @@ void main() {
         uint count = counts[t];
         uint list_begin = offsets[t] + min(count, sample_chunk * OCC_SAMPLE_CHUNK);
         uint list_end = offsets[t] + min(count, (sample_chunk + 1u) * OCC_SAMPLE_CHUNK);
-        // Two loops per window of 32 pairs: which pairs' projections may
-        // touch the texel, then the list against those only. On lavapipe a
-        // lane that skips a pair is only masked, so a loop body costs its
-        // whole length whenever any lane of the subgroup runs it; only a
-        // loop's trip count saves time (shared/notes/lavapipe.md), and
-        // most (texel, pair) combinations miss. Lanes without samples stop
-        // at once.
+        // Per window (PAIR_WINDOW, shadow_common.glsl): which pairs'
+        // projections may touch the texel, then the list against those
+        // only. Lanes without samples stop at once.
         bool has_list = list_begin != list_end;
         vec2 lo = vec2(texel), hi = lo + 1.0;
-        for (uint w0 = begin; has_list && w0 < end; w0 += 32u) {
-            uint window = min(32u, end - w0);
+        for (uint w0 = begin; has_list && w0 < end; w0 += PAIR_WINDOW) {
+            uint window = min(PAIR_WINDOW, end - w0);
             uint touching = 0u;
             for (uint j = 0u; j < window; j++) {
                 uint pi = texelFetch(tile_pairs_tb, int(w0 + j)).x;

@@ -15,12 +15,20 @@
 // pairs, chunk of OCC_SAMPLE_CHUNK list entries). lavapipe (llvmpipe) ends
 // every loop of an invocation silently once all its loops together have run
 // 65535 iterations (LP_MAX_TGSI_LOOP_ITERATIONS), so each invocation's work
-// is bounded: at most about OCC_PAIR_CHUNK * (OCC_SAMPLE_CHUNK + 2) iterations
-// (occlusion.comp: a loop over the chunk's pairs, then the list for each
-// pair that touches the texel).
+// is bounded: occlusion.comp runs at most OCC_PAIR_CHUNK * (OCC_SAMPLE_CHUNK
+// + 2) + OCC_PAIR_CHUNK / PAIR_WINDOW iterations (a loop over each window's
+// pairs, then the list for each pair that touches the texel).
 // Specialization constants: the soft exact mode loops over 128 light
 // samples per test, so its chunks are smaller.
 layout(constant_id = 2) const uint OCC_PAIR_CHUNK = 64u;
+// The occlusion passes take their pairs in windows of PAIR_WINDOW, in two
+// loops: the cheap rules for every pair of the window, which leave a
+// bitmask of the pairs that pass, then the expensive work for those only
+// (a findLSB loop over the mask). On lavapipe a lane's `continue` or `if`
+// only masks it, so a loop body costs its whole length whenever any lane
+// of the subgroup runs it; only a loop's trip count saves time. Most
+// (sample, pair) combinations fail the cheap rules.
+#define PAIR_WINDOW 32u
 layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 #define TEXEL_MARGIN 0.01
 // Rounding of projected coordinates that the texel margins absorb, in ulps

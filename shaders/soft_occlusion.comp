@@ -436,17 +436,13 @@ void main() {
         float delta_x = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(x) + length(ox)) * inv_r;
 #endif
         FOR_BLOCKS(ACC_BLOCK)
-        // Two loops per window of 32 pairs: the cheap rules of pair_planes
-        // for each pair, then the look-ups (or exact tests) for the pairs
-        // that passed, one loop iteration each. On lavapipe a lane's
-        // `continue` only masks it, so a loop body costs its whole length
-        // for every iteration any lane runs; only a loop's trip count
-        // saves time (shared/notes/lavapipe.md). Most pairs fail the
-        // cheap rules, so the expensive part now runs for the pairs that
-        // pass (the most of any lane of the subgroup), not for every pair.
+        // Per window (PAIR_WINDOW, shadow_common.glsl): the cheap rules of
+        // pair_planes for each pair, then the look-ups (or exact tests) for
+        // the pairs that passed. The second loop computes a pair's planes
+        // again rather than keep a window of them per lane.
         bool full = false;
-        for (uint w0 = begin; w0 < end && !full; w0 += 32u) {
-            uint window = min(32u, end - w0);
+        for (uint w0 = begin; w0 < end && !full; w0 += PAIR_WINDOW) {
+            uint window = min(PAIR_WINDOW, end - w0);
             uint passed = 0u;
             for (uint j = 0u; j < window; j++) {
                 PairPlanes p;
@@ -459,19 +455,15 @@ void main() {
                 passed &= passed - 1u;
                 PairPlanes p;
                 pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
-                uvec4 ids = p.ids;
-                vec3 a = p.a, b = p.b, c = p.c, n = p.n, ns = p.ns, ao = p.a - o;
-                vec3 m0 = p.m0, m1 = p.m1, m2 = p.m2, u0 = p.u0, u1 = p.u1, u2 = p.u2;
-                float sigma = p.sigma, se = p.se, d0 = p.d0, d1 = p.d1, d2 = p.d2, d3 = p.d3;
                 bool hit = false;
 #if SURE
-                float delta_a = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(a) + length(ao)) * inv_r;
+                float delta_a = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(p.a) + length(p.a - o)) * inv_r;
                 bool rounding_too_large = max(delta_a, delta_x) > pc.soft_light.w;
                 uint res = pc.soft.z;
-                uint lt0 = lut_texel(lut_normal_cell(ns, res), d0, res), lf0 = bound_flags(d0);
-                uint lt1 = lut_texel(lut_normal_cell(u0, res), d1, res), lf1 = bound_flags(d1);
-                uint lt2 = lut_texel(lut_normal_cell(u1, res), d2, res), lf2 = bound_flags(d2);
-                uint lt3 = lut_texel(lut_normal_cell(u2, res), d3, res), lf3 = bound_flags(d3);
+                uint lt0 = lut_texel(lut_normal_cell(p.ns, res), p.d0, res), lf0 = bound_flags(p.d0);
+                uint lt1 = lut_texel(lut_normal_cell(p.u0, res), p.d1, res), lf1 = bound_flags(p.d1);
+                uint lt2 = lut_texel(lut_normal_cell(p.u1, res), p.d2, res), lf2 = bound_flags(p.d2);
+                uint lt3 = lut_texel(lut_normal_cell(p.u2, res), p.d3, res), lf3 = bound_flags(p.d3);
                 uint unsure_blocks = 0u;
                 FOR_BLOCKS(SURE_BLOCK)
                 // The pair's entries, one per block with unsure bits, after
@@ -492,14 +484,14 @@ void main() {
                     uvec4 picked = unsure0;
                     FOR_BLOCKS(PICK_UNSURE)
                     if (e < pc.soft.x) {
-                        unsure_list[2u * e] = uvec4(s, ids.x, k, 0u);
+                        unsure_list[2u * e] = uvec4(s, p.ids.x, k, 0u);
                         unsure_list[2u * e + 1u] = picked;
                     }
                     e++;
                 }
 #elif !EXACT
-                uint c0 = plane_code(ns, d0), c1 = plane_code(u0, d1);
-                uint c2 = plane_code(u1, d2), c3 = plane_code(u2, d3);
+                uint c0 = plane_code(p.ns, p.d0), c1 = plane_code(p.u0, p.d1);
+                uint c2 = plane_code(p.u1, p.d2), c3 = plane_code(p.u2, p.d3);
                 FOR_BLOCKS(LUT_BLOCK)
 #else
                 // Every light sample of the block against the four planes.
@@ -508,9 +500,9 @@ void main() {
                 uvec4 bits = uvec4(0u);
                 for (uint jl = 0u; jl < n_block; jl++) {
                     vec3 l = light_samples[base + jl].xyz;
-                    bool blocked = exact_blocks(l, n, sigma, a, x, m0, m1, m2, se);
+                    bool blocked = exact_blocks(l, p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
                     if (ALPHA != 0u && blocked) {
-                        vec2 bc = segment_barycentrics(x, l - x, a, b, c);
+                        vec2 bc = segment_barycentrics(x, l - x, p.a, p.b, p.c);
                         blocked = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, p.alpha_record, bc);
                     }
                     if (blocked) {

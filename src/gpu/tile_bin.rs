@@ -27,14 +27,15 @@ use crate::Result;
 
 /// Pairs per soft occlusion work unit (specialization constant 2,
 /// `OCC_PAIR_CHUNK`): each lane has one sample, and in exact mode each test
-/// loops over 128 light samples, so 256 · 129 stays below lavapipe's 65535
+/// loops over 128 light samples, so 256 · 130 (a loop over each window of
+/// pairs, then 128 for each pair that passes) stays below lavapipe's 65535
 /// loop iterations per invocation.
 pub const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
 
 /// Pairs per soft occlusion work unit in look-up mode (any block count).
 /// Its loops run at most twice per pair (the cheap rules, then the
-/// look-ups of the pairs that pass) plus once per window of 32 pairs and
-/// per 64 pairs compacted, far below lavapipe's 65535 loop iterations per
+/// look-ups of the pairs that pass) plus once per window of `PAIR_WINDOW`
+/// (32) pairs and per 64 pairs compacted, far below lavapipe's 65535 loop iterations per
 /// invocation: the bound is the shared memory that holds a unit's pairs
 /// (`MAX_KEPT`). The unsure list holds at most one entry per lane, pair
 /// and block of a unit (`SoftOcclusionPass::capacity`).
@@ -54,7 +55,7 @@ pub struct TileBinPass {
     units_hard: ComputePipeline,
     /// Soft shadows' work units: one lane per listed sample of the tile.
     units_soft: ComputePipeline,
-    /// The same with the look-up mode's chunks, per block count (1 to 8).
+    /// The same with the look-up mode's chunks (`SURE_PAIR_CHUNK`).
     units_sure: ComputePipeline,
     scan: ScanPass,
     /// A caller's recording: the occlusion passes' indirect workgroup counts
