@@ -130,9 +130,11 @@ fn look_up_mode_masks_equal_exact_mode() {
     engine.context().check_validation().unwrap();
 }
 
-/// Look-up mode's table kept on disk: a second engine reads it instead of
-/// building it and gets the same masks; a file that does not hold the key
-/// (corrupted) is not used; at most `KEPT` files stay.
+/// Look-up mode's table kept on disk: a second engine reads it (or, on a
+/// CPU device with `VK_EXT_external_memory_host`, maps it) instead of
+/// building it and gets the same masks, whether mapped or read; a file
+/// that does not hold the key (corrupted) is not used; at most `KEPT` files
+/// stay.
 #[test]
 fn the_table_is_kept_across_runs() {
     use alias_free_shadows::gpu::plane_lut::table_cache::KEPT;
@@ -142,24 +144,38 @@ fn the_table_is_kept_across_runs() {
     let oracle = Oracle::new(&desc.scene.triangles(), eye);
     let view = engine_view_samples(&oracle, &desc);
     let settings = ShadowSettings::default();
-    let run = |light: &Light| {
+    let run_mapping = |light: &Light, map: bool| {
         let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+        let info = engine.context().info();
+        let can_map = info.is_cpu() && info.features.external_memory_host;
         engine.set_table_cache(Some(dir.path().to_path_buf()));
+        engine.set_table_mapping(map);
         let r = engine
             .soft_shadows(&desc.scene, eye, &view.samples, light, &settings)
             .unwrap();
         engine.context().check_validation().unwrap();
-        let built = r.stats.ms.contains_key("lut_build");
-        let read = r.stats.ms.contains_key("lut_read");
-        assert!(built != read, "{:?}", r.stats.ms);
-        (r, read)
+        let ms = &r.stats.ms;
+        let how = ["lut_build", "lut_read", "lut_mapped"].map(|k| ms.contains_key(k));
+        assert_eq!(how.iter().filter(|&&h| h).count(), 1, "{ms:?}");
+        (r, how, can_map)
     };
     let light = bench_light(&desc, 64).unwrap();
-    let (first, read) = run(&light);
-    assert!(!read, "a fresh cache has no table");
-    let (second, read) = run(&light);
-    assert!(read, "the second run reads the kept table");
+    let (first, how, _) = run_mapping(&light, true);
+    assert!(how[0], "a fresh cache has no table");
+    let (second, how, can_map) = run_mapping(&light, true);
+    assert_eq!(
+        how,
+        [false, !can_map, can_map],
+        "the second run maps the kept table where it can, else reads it"
+    );
     assert_eq!(first.visible, second.visible);
+    let (read, how, _) = run_mapping(&light, false);
+    assert!(how[1], "mapping off: the kept table is read");
+    assert_eq!(first.visible, read.visible);
+    let run = |light: &Light| {
+        let (r, how, _) = run_mapping(light, true);
+        (r, how[1] || how[2])
+    };
     // A corrupted file is rebuilt, with the same masks.
     let file = std::fs::read_dir(dir.path())
         .unwrap()

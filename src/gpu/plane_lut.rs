@@ -33,6 +33,8 @@ pub struct PlaneLutPass {
     cache_dir: Option<std::path::PathBuf>,
     /// The thread writing the last table built into the cache, if any.
     writer: Option<std::thread::JoinHandle<()>>,
+    /// Whether a cached table may be mapped ([`PlaneLutPass::map_cached`]).
+    map_cached: bool,
 }
 
 impl Drop for PlaneLutPass {
@@ -66,6 +68,7 @@ impl PlaneLutPass {
             normalized: GrowBuffer::storage_uniform("normalized_light_samples"),
             cache_dir: None,
             writer: None,
+            map_cached: true,
         })
     }
 
@@ -157,11 +160,12 @@ impl PlaneLutPass {
         }
         self.finish_writing(); // the writer reads the old table
         self.table = None; // the old table is freed before the new one is made
-        let buffer = ctx.create_buffer(BufferDesc::storage("plane_lut", 16 * texels))?;
+        let desc = BufferDesc::storage("plane_lut", 16 * texels);
         if bounds {
-            // Read from the cache on disk straight into the buffer, else
-            // built on the host in parallel, O(cells · samples) (see
-            // build_bounds_lut), into the buffer, and kept there.
+            // From the cache on disk: mapped as the buffer's memory where
+            // the device allows it, else read straight into the buffer;
+            // else built on the host in parallel, O(cells · samples) (see
+            // build_bounds_lut), into the buffer, and kept.
             let cache = self
                 .cache_dir
                 .as_deref()
@@ -169,6 +173,13 @@ impl PlaneLutPass {
             let cached = cache
                 .as_deref()
                 .and_then(|p| table_cache::open(p, &key, texels));
+            if let Some(file) = &cached {
+                if let Some(buffer) = self.map_cached(ctx, clock, file, &desc)? {
+                    self.table = Some(PlaneLut { key, buffer });
+                    return Ok(true);
+                }
+            }
+            let buffer = ctx.create_buffer(desc)?;
             let name = if cached.is_some() {
                 "lut_read"
             } else {
@@ -193,6 +204,7 @@ impl PlaneLutPass {
             self.table = Some(PlaneLut { key, buffer });
             return Ok(true);
         }
+        let buffer = ctx.create_buffer(desc)?;
         let v: Vec<[f32; 4]> = ys.iter().map(|y| [y.x, y.y, y.z, 0.0]).collect();
         let ys_ubo = self.normalized.get(ctx, 16 * MAX_SOFT_SAMPLES as u64)?;
         ctx.upload_staged(ys_ubo, 0, &v)?;
@@ -219,6 +231,60 @@ impl PlaneLutPass {
         ctx.check_validation()?;
         self.table = Some(PlaneLut { key, buffer });
         Ok(true)
+    }
+
+    /// The cached table `file` as a buffer whose memory is the file's
+    /// pages (timed as `lut_mapped`): on a CPU device with
+    /// `VK_EXT_external_memory_host`, whose device memory is host memory
+    /// anyway, so that a 512 MiB table costs no copy and no fresh pages
+    /// (reading it into a new buffer took 0.38 s here, mostly the kernel
+    /// zeroing and mapping the buffer's pages). None elsewhere (a GPU
+    /// would read host memory over the bus at every look-up), when
+    /// mapping is off, or when mapping or importing fails (a warning).
+    fn map_cached(
+        &self,
+        ctx: &GpuContext,
+        clock: &mut PassClock,
+        file: &table_cache::CachedTable,
+        desc: &BufferDesc,
+    ) -> Result<Option<Buffer>> {
+        let info = ctx.info();
+        let align = info.min_imported_host_pointer_alignment;
+        if !self.map_cached
+            || !info.is_cpu()
+            || !info.features.external_memory_host
+            || align == 0
+            || !table_cache::DATA_ALIGN.is_multiple_of(align)
+        {
+            return Ok(None);
+        }
+        let mut buffer = None;
+        clock.time(ctx, &mut ctx.begin()?, "lut_mapped", |_| {
+            let Some(mapped) = file.map() else {
+                return Ok(());
+            };
+            let (ptr, len) = (mapped.ptr(), mapped.len() as u64);
+            // SAFETY: the extension is enabled (features), the mapping is
+            // page-aligned and a multiple of DATA_ALIGN long (so of the
+            // alignment, checked above), it lives as long as the buffer
+            // (its owner), its contents never change (see MappedTable),
+            // and the GPU only reads the table.
+            match unsafe {
+                Buffer::from_host_memory(ctx.device(), desc, ptr, len, Box::new(mapped))
+            } {
+                Ok(b) => buffer = Some(b),
+                Err(e) => log::warn!("the cached look-up table cannot be mapped ({e}); reading it"),
+            }
+            Ok(())
+        })?;
+        Ok(buffer)
+    }
+
+    /// Maps tables read from the cache into device memory where the device
+    /// allows it (on by default; off reads them, as on a GPU: for tests of
+    /// that path and for measuring).
+    pub fn set_cache_mapping(&mut self, on: bool) {
+        self.map_cached = on;
     }
 
     /// Keeps look-up mode's tables in `dir` across runs (None: never).
@@ -268,10 +334,20 @@ pub mod table_cache {
 
     /// Files kept in the directory.
     pub const KEPT: usize = 8;
-    const MAGIC: &[u8; 8] = b"AFSLUT02";
+    const MAGIC: &[u8; 8] = b"AFSLUT03";
     /// Bytes per read or write call: one call of a whole 512 MiB table
     /// took 4.4 s to write here, 4 MiB calls 0.11 s (`dd` shows the same).
     const CHUNK: usize = 4 << 20;
+    /// The texels start at a multiple of this in the file, and the file
+    /// ends at one (zeros after the header and after the texels), so that
+    /// they can be mapped and imported as device memory
+    /// ([`CachedTable::map`]): a multiple of every page size and of
+    /// lavapipe's `minImportedHostPointerAlignment` (4 KiB).
+    pub const DATA_ALIGN: u64 = 64 << 10;
+
+    fn align_up(n: u64) -> u64 {
+        n.div_ceil(DATA_ALIGN) * DATA_ALIGN
+    }
 
     /// The directory tables go to by default: `AFS_TABLE_CACHE` (`0` or
     /// `off`: none), else `$XDG_CACHE_HOME/alias-free-shadows`, else
@@ -297,16 +373,31 @@ pub mod table_cache {
             })
     }
 
-    /// The file of the table of `key` in `dir`.
+    /// The file of the table of `key` in `path`.
     pub fn path(dir: &Path, key: &[u32]) -> PathBuf {
         dir.join(format!("plane-lut-{:016x}.bin", hash(key)))
     }
 
+    /// The header's bytes: magic, key length, key.
+    fn header(key: &[u32]) -> Vec<u8> {
+        let mut head = Vec::with_capacity(12 + 4 * key.len());
+        head.extend_from_slice(MAGIC);
+        head.extend_from_slice(&(key.len() as u32).to_le_bytes());
+        for k in key {
+            head.extend_from_slice(&k.to_le_bytes());
+        }
+        head
+    }
+
     /// A table file whose header holds `key` and whose size fits `texels`
-    /// texels, opened at its first texel.
+    /// texels.
     pub struct CachedTable {
         file: std::fs::File,
         path: PathBuf,
+        /// Where the texels start.
+        offset: u64,
+        /// The texels' bytes.
+        bytes: u64,
     }
 
     /// The table file of `key` in `path`, if its header holds `key` and its
@@ -315,16 +406,13 @@ pub mod table_cache {
     pub fn open(path: &Path, key: &[u32], texels: u64) -> Option<CachedTable> {
         use std::io::Read;
         let mut file = std::fs::File::open(path).ok()?;
-        let head = 8 + 4 + 4 * key.len();
-        let mut bytes = vec![0u8; head];
-        let ok = file.read_exact(&mut bytes).is_ok()
-            && file.metadata().ok()?.len() == head as u64 + 16 * texels
-            && &bytes[..8] == MAGIC
-            && bytes[8..12] == (key.len() as u32).to_le_bytes()
-            && bytes[12..head]
-                .chunks_exact(4)
-                .zip(key)
-                .all(|(b, k)| b == k.to_le_bytes());
+        let want = header(key);
+        let mut head = vec![0u8; want.len()];
+        let offset = align_up(want.len() as u64);
+        let bytes = 16 * texels;
+        let ok = file.read_exact(&mut head).is_ok()
+            && file.metadata().ok()?.len() == offset + align_up(bytes)
+            && head == want;
         if !ok {
             log::warn!("{}: not the table wanted; building it", path.display());
             return None;
@@ -332,6 +420,8 @@ pub mod table_cache {
         Some(CachedTable {
             file,
             path: path.to_owned(),
+            offset,
+            bytes,
         })
     }
 
@@ -339,16 +429,96 @@ pub mod table_cache {
         /// Reads the texels into `out` (exactly their size); false (with a
         /// warning) when the file ends early or cannot be read.
         pub fn read_into(mut self, out: &mut [u8]) -> bool {
-            use std::io::Read;
-            let read = out
-                .chunks_mut(CHUNK)
-                .try_for_each(|c| self.file.read_exact(c));
+            use std::io::{Read, Seek};
+            let read = self
+                .file
+                .seek(std::io::SeekFrom::Start(self.offset))
+                .and_then(|_| {
+                    out.chunks_mut(CHUNK)
+                        .try_for_each(|c| self.file.read_exact(c))
+                });
             match read {
                 Ok(()) => true,
                 Err(e) => {
                     log::warn!("{}: {e}; building the table", self.path.display());
                     false
                 }
+            }
+        }
+
+        /// The texels mapped read-only into memory, with every page of the
+        /// mapping filled in now (`MAP_POPULATE`: what a read would touch,
+        /// at no copy), followed by zeros up to a multiple of
+        /// [`DATA_ALIGN`]; None (with a warning) where mapping fails or
+        /// the platform has no `mmap`.
+        pub fn map(&self) -> Option<MappedTable> {
+            #[cfg(unix)]
+            {
+                use std::os::fd::AsRawFd;
+                let len = align_up(self.bytes) as usize;
+                // SAFETY: a fresh read-only shared mapping of an open file
+                // at a page-aligned offset; nothing else aliases it.
+                let ptr = unsafe {
+                    libc::mmap(
+                        std::ptr::null_mut(),
+                        len,
+                        libc::PROT_READ,
+                        libc::MAP_SHARED | libc::MAP_POPULATE,
+                        self.file.as_raw_fd(),
+                        self.offset as libc::off_t,
+                    )
+                };
+                if ptr == libc::MAP_FAILED {
+                    log::warn!(
+                        "{}: mapping failed ({}); reading it",
+                        self.path.display(),
+                        std::io::Error::last_os_error()
+                    );
+                    return None;
+                }
+                Some(MappedTable { ptr, len })
+            }
+            #[cfg(not(unix))]
+            None
+        }
+    }
+
+    /// A table file's texels mapped into memory, unmapped on drop. The
+    /// cache writes a table's file under another name and renames it, and
+    /// removes old ones, so a mapped file's contents never change; a file
+    /// another program truncates meanwhile would fault its readers.
+    pub struct MappedTable {
+        ptr: *mut std::ffi::c_void,
+        len: usize,
+    }
+
+    // SAFETY: the mapping is read-only and owned by this value alone.
+    unsafe impl Send for MappedTable {}
+    unsafe impl Sync for MappedTable {}
+
+    impl MappedTable {
+        /// The start of the mapping (page-aligned).
+        pub fn ptr(&self) -> *mut std::ffi::c_void {
+            self.ptr
+        }
+
+        /// Its length in bytes (a multiple of [`DATA_ALIGN`]).
+        pub fn len(&self) -> usize {
+            self.len
+        }
+
+        /// Whether it maps nothing (never: tables have texels).
+        pub fn is_empty(&self) -> bool {
+            self.len == 0
+        }
+    }
+
+    impl Drop for MappedTable {
+        fn drop(&mut self) {
+            #[cfg(unix)]
+            // SAFETY: the mapping made in CachedTable::map, unmapped once.
+            unsafe {
+                libc::munmap(self.ptr, self.len);
             }
         }
     }
@@ -360,12 +530,8 @@ pub mod table_cache {
             let dir = path.parent().unwrap_or(Path::new("."));
             std::fs::create_dir_all(dir)?;
             use std::io::Write;
-            let mut head = Vec::with_capacity(12 + 4 * key.len());
-            head.extend_from_slice(MAGIC);
-            head.extend_from_slice(&(key.len() as u32).to_le_bytes());
-            for k in key {
-                head.extend_from_slice(&k.to_le_bytes());
-            }
+            let mut head = header(key);
+            head.resize(align_up(head.len() as u64) as usize, 0);
             // Unique per writer, so two engines of one process writing the
             // same table never share a temporary file.
             static WRITES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
@@ -373,9 +539,12 @@ pub mod table_cache {
             let tmp = path.with_extension(format!("partial.{}.{n}", std::process::id()));
             let mut file = std::fs::File::create(&tmp)?;
             file.write_all(&head)?;
-            for c in bytemuck::cast_slice::<_, u8>(lut).chunks(CHUNK) {
+            let texels: &[u8] = bytemuck::cast_slice(lut);
+            for c in texels.chunks(CHUNK) {
                 file.write_all(c)?;
             }
+            let end = align_up(texels.len() as u64) - texels.len() as u64;
+            file.write_all(&vec![0u8; end as usize])?;
             drop(file);
             std::fs::rename(&tmp, path)?;
             let mut files: Vec<(std::time::SystemTime, PathBuf)> = std::fs::read_dir(dir)?

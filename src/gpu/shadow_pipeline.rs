@@ -172,6 +172,12 @@ impl ShadowPipeline {
         self.passes.plane_lut.set_cache_dir(dir);
     }
 
+    /// Whether tables read from the cache are mapped into device memory
+    /// where the device allows it (see [`crate::gpu::plane_lut::PlaneLutPass::set_cache_mapping`]).
+    pub fn set_table_mapping(&mut self, on: bool) {
+        self.passes.plane_lut.set_cache_mapping(on);
+    }
+
     /// The folder of [`ShadowPipeline::set_table_cache`], taken out.
     pub fn take_table_cache(&mut self) -> Option<std::path::PathBuf> {
         self.passes.plane_lut.take_cache_dir()

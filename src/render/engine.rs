@@ -247,6 +247,14 @@ impl Engine {
         self.shadows.set_clusters(on);
     }
 
+    /// Maps look-up tables read from the cache into device memory where the
+    /// device allows it (a CPU device with `VK_EXT_external_memory_host`:
+    /// no copy); on by default. Off reads them into fresh memory, as on a
+    /// GPU: for tests of that path and for measuring.
+    pub fn set_table_mapping(&mut self, on: bool) {
+        self.shadows.set_table_mapping(on);
+    }
+
     /// Limits the entries of look-up mode's unsure list per range of work
     /// units: more ranges (and runs again of ranges that overflow), the same
     /// masks. For tests of that path; `None` lifts it.

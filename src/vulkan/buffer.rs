@@ -92,6 +92,16 @@ pub struct Buffer {
     device: Arc<Device>,
     /// A caller's buffer ([`Buffer::borrowed`]): never destroyed here.
     borrowed: bool,
+    /// Host memory imported as this buffer's memory
+    /// ([`Buffer::from_host_memory`]).
+    imported: Option<ImportedMemory>,
+}
+
+/// Device memory made from host memory, and the owner of that host memory
+/// (dropped after the device memory is freed).
+struct ImportedMemory {
+    memory: vk::DeviceMemory,
+    _owner: Box<dyn Send + Sync>,
 }
 
 impl Buffer {
@@ -119,6 +129,7 @@ impl Buffer {
             name: name.to_string(),
             device: Arc::clone(device),
             borrowed: true,
+            imported: None,
         }
     }
 
@@ -145,6 +156,7 @@ impl Buffer {
             name: desc.name.clone(),
             device: Arc::clone(device),
             borrowed: false,
+            imported: None,
         };
         let requirements = unsafe { device.raw().get_buffer_memory_requirements(raw) };
         let allocation = device
@@ -166,6 +178,114 @@ impl Buffer {
         let (memory, offset) = unsafe { (allocation.memory(), allocation.offset()) };
         buffer.allocation = Some(allocation);
         unsafe { device.raw().bind_buffer_memory(raw, memory, offset) }.map_err(|e| {
+            Error::Vulkan(format!("binding memory of buffer \"{}\": {e:?}", desc.name))
+        })?;
+        Ok(buffer)
+    }
+
+    /// A buffer whose memory is the `len` bytes of host memory at `ptr`,
+    /// imported through `VK_EXT_external_memory_host`: nothing is copied.
+    /// `owner` owns that memory; it is dropped after the buffer and its
+    /// device memory. The buffer is `desc.size` bytes (at most `len`); its
+    /// location is reported as [`MemoryLocation::Unknown`].
+    ///
+    /// # Safety
+    /// The device must have `VK_EXT_external_memory_host` enabled
+    /// ([`super::DeviceFeatures::external_memory_host`]); `ptr` and `len`
+    /// must be multiples of its `minImportedHostPointerAlignment`; the range
+    /// must stay valid, readable and unchanged while `owner` lives, and
+    /// writable if the GPU writes the buffer.
+    pub unsafe fn from_host_memory(
+        device: &Arc<Device>,
+        desc: &BufferDesc,
+        ptr: *mut std::ffi::c_void,
+        len: u64,
+        owner: Box<dyn Send + Sync>,
+    ) -> Result<Buffer> {
+        let size = desc.size.max(4);
+        if size > len {
+            return Err(Error::InvalidInput(format!(
+                "buffer \"{}\" of {size} bytes on {len} bytes of host memory",
+                desc.name
+            )));
+        }
+        let handle = vk::ExternalMemoryHandleTypeFlags::HOST_ALLOCATION_EXT;
+        let mut external = vk::ExternalMemoryBufferCreateInfo::default().handle_types(handle);
+        let info = vk::BufferCreateInfo::default()
+            .size(size)
+            .usage(desc.usage)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE)
+            .push_next(&mut external);
+        let raw = unsafe { device.raw().create_buffer(&info, None) }.map_err(|e| {
+            Error::Vulkan(format!(
+                "creating buffer \"{}\" ({size} bytes) on host memory: {e:?}",
+                desc.name
+            ))
+        })?;
+        // From here on, dropping `buffer` cleans up whatever exists (the
+        // owner goes last, with `imported`).
+        let mut buffer = Buffer {
+            raw,
+            allocation: None,
+            size,
+            usage: desc.usage,
+            location: MemoryLocation::Unknown,
+            name: desc.name.clone(),
+            device: Arc::clone(device),
+            borrowed: false,
+            imported: None,
+        };
+        let loader =
+            ash::ext::external_memory_host::Device::new(device.instance().raw(), device.raw());
+        let mut host = vk::MemoryHostPointerPropertiesEXT::default();
+        // ash has no wrapper for this one: the raw function pointer.
+        let got = unsafe {
+            (loader.fp().get_memory_host_pointer_properties_ext)(
+                device.raw().handle(),
+                handle,
+                ptr,
+                &mut host,
+            )
+        };
+        got.result().map_err(|e| {
+            Error::Vulkan(format!("host pointer of buffer \"{}\": {e:?}", desc.name))
+        })?;
+        let requirements = unsafe { device.raw().get_buffer_memory_requirements(raw) };
+        let types = requirements.memory_type_bits & host.memory_type_bits;
+        if types == 0 {
+            // Keep the owner alive until the buffer is gone all the same.
+            drop(buffer);
+            drop(owner);
+            return Err(Error::Vulkan(format!(
+                "no memory type for buffer \"{}\" on host memory",
+                desc.name
+            )));
+        }
+        let mut import = vk::ImportMemoryHostPointerInfoEXT::default()
+            .handle_type(handle)
+            .host_pointer(ptr);
+        let alloc = vk::MemoryAllocateInfo::default()
+            .allocation_size(len)
+            .memory_type_index(types.trailing_zeros())
+            .push_next(&mut import);
+        let memory = unsafe { device.raw().allocate_memory(&alloc, None) };
+        let memory = match memory {
+            Ok(m) => m,
+            Err(e) => {
+                drop(buffer);
+                drop(owner);
+                return Err(Error::Vulkan(format!(
+                    "importing {len} bytes of host memory for buffer \"{}\": {e:?}",
+                    desc.name
+                )));
+            }
+        };
+        buffer.imported = Some(ImportedMemory {
+            memory,
+            _owner: owner,
+        });
+        device.count_allocation(false, size);
+        unsafe { device.raw().bind_buffer_memory(raw, memory, 0) }.map_err(|e| {
             Error::Vulkan(format!("binding memory of buffer \"{}\": {e:?}", desc.name))
         })?;
         Ok(buffer)
@@ -310,6 +430,10 @@ impl Drop for Buffer {
             if let Err(e) = self.device.allocator().free(a) {
                 log::error!("freeing buffer \"{}\": {e}", self.name);
             }
+        }
+        if let Some(m) = self.imported.take() {
+            // The memory before its owner (which drops after this).
+            unsafe { self.device.raw().free_memory(m.memory, None) };
         }
     }
 }

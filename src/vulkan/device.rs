@@ -136,6 +136,9 @@ pub struct DeviceInfo {
     /// The optional features the device supports (on a caller's device:
     /// those it supports and the caller enabled).
     pub features: DeviceFeatures,
+    /// `minImportedHostPointerAlignment` of `VK_EXT_external_memory_host`
+    /// in bytes (0 without the extension).
+    pub min_imported_host_pointer_alignment: u64,
 }
 
 impl DeviceInfo {
@@ -177,6 +180,21 @@ impl DeviceInfo {
 
         let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
         let queue = choose_queue_family(&families);
+        let external_memory_host =
+            unsafe { instance.enumerate_device_extension_properties(physical) }
+                .unwrap_or_default()
+                .iter()
+                .any(|e| e.extension_name_as_c_str() == Ok(ash::ext::external_memory_host::NAME));
+        // Chained only when the extension exists (its struct is not valid
+        // otherwise).
+        let host_pointer_alignment = if external_memory_host {
+            let mut host = vk::PhysicalDeviceExternalMemoryHostPropertiesEXT::default();
+            let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut host);
+            unsafe { instance.get_physical_device_properties2(physical, &mut props2) };
+            host.min_imported_host_pointer_alignment
+        } else {
+            0
+        };
         let memory = unsafe { instance.get_physical_device_memory_properties(physical) };
         let l = props.limits;
 
@@ -237,7 +255,9 @@ impl DeviceInfo {
                 storage_image_write_without_format: features
                     .shader_storage_image_write_without_format
                     == vk::TRUE,
+                external_memory_host,
             },
+            min_imported_host_pointer_alignment: host_pointer_alignment,
         }
     }
 }
@@ -561,8 +581,10 @@ impl Device {
         let queue_infos = [vk::DeviceQueueCreateInfo::default()
             .queue_family_index(queue_family)
             .queue_priorities(&priorities)];
+        let extension_names: Vec<_> = requirements.extensions.iter().map(|e| e.as_ptr()).collect();
         let create_info = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_infos)
+            .enabled_extension_names(&extension_names)
             .enabled_features(&features)
             .push_next(&mut features12);
         let raw = unsafe { instance.raw().create_device(physical, &create_info, None) }
@@ -826,6 +848,10 @@ pub struct DeviceFeatures {
     pub storage_image_read_without_format: bool,
     /// `shaderStorageImageWriteWithoutFormat`.
     pub storage_image_write_without_format: bool,
+    /// The device extension `VK_EXT_external_memory_host`: on a CPU device
+    /// a look-up table kept on disk is mapped into device memory instead of
+    /// copied (see [`crate::gpu::plane_lut::table_cache`]).
+    pub external_memory_host: bool,
 }
 
 impl DeviceFeatures {
@@ -841,6 +867,7 @@ impl DeviceFeatures {
                 && o.storage_image_read_without_format,
             storage_image_write_without_format: self.storage_image_write_without_format
                 && o.storage_image_write_without_format,
+            external_memory_host: self.external_memory_host && o.external_memory_host,
         }
     }
 }
@@ -849,7 +876,9 @@ impl DeviceFeatures {
 /// its own device and hands it over ([`ExternalDevice`]): merge these into
 /// its own device creation.
 ///
-/// - Vulkan 1.2 (instance and device), no instance or device extension;
+/// - Vulkan 1.2 (instance and device), no instance extension, no required
+///   device extension (`VK_EXT_external_memory_host` where supported, in
+///   [`DeviceRequirements::extensions`]);
 /// - a queue family with `COMPUTE` ([`Engine::render`](crate::render::Engine::render)'s
 ///   view samples rasterise, so that one needs `GRAPHICS` too);
 /// - no required feature; the optional [`DeviceFeatures`] that the device
@@ -860,7 +889,10 @@ impl DeviceFeatures {
 pub struct DeviceRequirements {
     /// The Vulkan version the instance and device must have.
     pub api_version: u32,
-    /// Device extensions to enable (none today).
+    /// Device extensions to enable (optional ones the device supports:
+    /// `VK_EXT_external_memory_host`). Enabling them is up to the caller:
+    /// set [`DeviceFeatures::external_memory_host`] in
+    /// [`ExternalDevice::enabled`] only where it did.
     pub extensions: Vec<&'static CStr>,
     /// Queue capabilities of the family the engine submits to.
     pub queue_flags: vk::QueueFlags,
@@ -889,7 +921,11 @@ impl DeviceRequirements {
     fn from_info(info: &DeviceInfo) -> Self {
         DeviceRequirements {
             api_version: vk::API_VERSION_1_2,
-            extensions: Vec::new(),
+            extensions: if info.features.external_memory_host {
+                vec![ash::ext::external_memory_host::NAME]
+            } else {
+                Vec::new()
+            },
             queue_flags: vk::QueueFlags::COMPUTE,
             features: info.features,
         }
