@@ -17,7 +17,7 @@ use crate::gpu::light_frame::{CasterRound, Recording, UNITS_INDIRECT};
 use crate::gpu::shaders;
 use crate::gpu::shared::{counter, LightPush};
 use crate::gpu::soft_light::{SoftLight, SoftMode, MAX_SOFT_SAMPLES};
-use crate::gpu::tile_bin::{SOFT_PAIR_CHUNK, SURE_PAIR_CHUNK};
+use crate::gpu::tile_bin::{LOOKUP_PAIR_CHUNK, SOFT_PAIR_CHUNK};
 use crate::gpu::{casters::CasterPass, texel_lists::TexelListPass, tile_bin::TileBinPass};
 use crate::vulkan::{
     vk, Barrier, Binding, Buffer, CommandRecorder, ComputePipeline, ComputePipelineDesc,
@@ -105,11 +105,11 @@ impl Kernel {
         match self {
             Kernel::Sure(b) => {
                 let name = format!("soft_occlusion_sure{b}{suffix}");
-                occlusion_pipeline(ctx, &name, SURE_SPIRV[b - 1], SURE_PAIR_CHUNK, flags)
+                occlusion_pipeline(ctx, &name, SURE_SPIRV[b - 1], LOOKUP_PAIR_CHUNK, flags)
             }
             Kernel::Approx(b) => {
                 let name = format!("soft_occlusion_approx{b}{suffix}");
-                occlusion_pipeline(ctx, &name, APPROX_SPIRV[b - 1], SOFT_PAIR_CHUNK, flags)
+                occlusion_pipeline(ctx, &name, APPROX_SPIRV[b - 1], LOOKUP_PAIR_CHUNK, flags)
             }
             Kernel::Exact => {
                 let name = format!("soft_occlusion_exact{suffix}");
@@ -292,7 +292,7 @@ impl SoftOcclusionPass {
         // when it had as many units (a frame like the last: no range runs
         // twice). A range whose list overflowed runs again, shorter, from
         // the counters before it: its sure bits ORed twice are the same.
-        let per_unit = 64 * SURE_PAIR_CHUNK.1 as u64 * blocks as u64;
+        let per_unit = 64 * LOOKUP_PAIR_CHUNK.1 as u64 * blocks as u64;
         let capacity = self.capacity();
         debug_assert!(capacity >= per_unit);
         let safe = (capacity / per_unit).max(1) as u32;
@@ -347,10 +347,10 @@ impl SoftOcclusionPass {
 
     /// Entries the unsure list holds per range: its size, or the limit,
     /// but never below one unit's bound (64 lanes × a unit's pairs × its
-    /// blocks, `SURE_PAIR_CHUNK`: at most 64 · 512 · 8), so that a range
+    /// blocks, `LOOKUP_PAIR_CHUNK`: at most 64 · 512 · 8), so that a range
     /// of one unit always fits.
     fn capacity(&self) -> u64 {
-        let one_unit = 64 * SURE_PAIR_CHUNK.1 as u64 * 8;
+        let one_unit = 64 * LOOKUP_PAIR_CHUNK.1 as u64 * 8;
         let limit = self.list_limit.unwrap_or(u64::MAX).max(one_unit);
         (self.unsure_list.len() / 32).min(limit)
     }
