@@ -840,8 +840,8 @@ fn morton_key(u: &[f64; 3], dims: usize) -> u32 {
     let q: [u32; 3] = std::array::from_fn(|k| ((u[k] * 1024.0) as u32).min(1023));
     let mut key = 0u32;
     for bit in (0..10).rev() {
-        for k in 0..dims {
-            key = key << 1 | (q[k] >> bit & 1);
+        for qk in &q[..dims] {
+            key = key << 1 | (qk >> bit & 1);
         }
     }
     key

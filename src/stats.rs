@@ -112,6 +112,15 @@ pub struct SoftStats {
     pub unsure_bits: u64,
     /// `unsure_bits` as a fraction (0 to 1) of tests × light samples.
     pub unsure_share: f64,
+    /// Look-up mode: entries of the unsure list (a test's unsure bits in
+    /// one 128-sample block: one exact-test invocation each).
+    #[serde(default)]
+    pub unsure_entries: u64,
+    /// Look-up mode: ranges of work units the occlusion ran in, each
+    /// followed by the exact tests of its entries (more than one when the
+    /// list's buffer would overflow).
+    #[serde(default)]
+    pub unsure_ranges: u32,
 }
 
 impl ShadowStats {
@@ -177,6 +186,8 @@ impl ShadowStats {
                 unsure_bits: unsure,
                 unsure_share: unsure as f64
                     / (c[counter::TESTS] as f64 * sl.samples.len() as f64).max(1.0),
+                unsure_entries: out.soft.as_ref().map_or(0, |s| s.unsure_entries),
+                unsure_ranges: out.soft.as_ref().map_or(0, |s| s.unsure_ranges),
             }),
         }
     }

@@ -202,7 +202,9 @@ fn the_table_is_kept_across_runs() {
 }
 
 /// The unsure list in small ranges (and ranges that overflow and run again)
-/// gives the same masks as one range.
+/// gives the same masks as in the ranges without a limit (the first as long
+/// as the worst case fits, the next after the entries seen), and the limit
+/// does make more ranges.
 #[test]
 fn unsure_list_ranges_equal_one_range() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
@@ -228,13 +230,20 @@ fn unsure_list_ranges_equal_one_range() {
         )
         .unwrap();
     assert_eq!(one.visible, exact.visible);
-    let listed = one.stats.soft.as_ref().unwrap().unsure_bits;
-    // More than the smallest range holds (one unit's bound, 31,775).
-    assert!(
-        listed > 100_000,
-        "the case must list many unsure bits: {listed}"
+    let soft = one.stats.soft.as_ref().unwrap();
+    // More than one unit's bound (64 lanes × 512 pairs × 2 blocks), the
+    // smallest range a limit allows.
+    let one_unit = 64 * 512 * 2;
+    eprintln!(
+        "{} unsure entries in {} range(s) without a limit",
+        soft.unsure_entries, soft.unsure_ranges
     );
-    for limit in [1u64, 60_000] {
+    assert!(
+        soft.unsure_entries > one_unit,
+        "the case must list many unsure entries: {}",
+        soft.unsure_entries
+    );
+    for limit in [1u64, 3 * one_unit / 2] {
         engine.set_unsure_list_limit(Some(limit));
         let ranged = engine
             .soft_shadows(&desc.scene, eye, &view.samples, &light, &settings)
@@ -251,6 +260,13 @@ fn unsure_list_ranges_equal_one_range() {
         assert_eq!(
             one.stats.view_sample_triangle_tests, ranged.stats.view_sample_triangle_tests,
             "ranges run again from the counters before them"
+        );
+        let ranged_soft = ranged.stats.soft.as_ref().unwrap();
+        assert!(
+            ranged_soft.unsure_ranges > soft.unsure_ranges.max(1),
+            "list limit {limit}: {} range(s), {} without a limit",
+            ranged_soft.unsure_ranges,
+            soft.unsure_ranges
         );
     }
     engine.context().check_validation().unwrap();

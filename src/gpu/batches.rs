@@ -229,6 +229,8 @@ fn concatenate(mut acc: ShadowOutput, o: ShadowOutput) -> ShadowOutput {
         a.visibility.extend(b.visibility);
         a.visible.extend(b.visible);
         a.lut_built |= b.lut_built;
+        a.unsure_entries += b.unsure_entries;
+        a.unsure_ranges += b.unsure_ranges;
     }
     acc
 }
@@ -264,6 +266,8 @@ fn intersect(mut acc: ShadowOutput, o: ShadowOutput, soft: Option<&SoftLight>) -
             }
         }
         a.lut_built |= b.lut_built;
+        a.unsure_entries += b.unsure_entries;
+        a.unsure_ranges += b.unsure_ranges;
     }
     acc
 }

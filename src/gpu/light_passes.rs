@@ -65,6 +65,12 @@ pub struct SoftOutput {
     /// Whether this run built the plane look-up texture (`lut_build` in the
     /// timings); false in exact mode and when the last one was reused.
     pub lut_built: bool,
+    /// Look-up mode: entries of the unsure list (a pair's unsure bits in
+    /// one 128-sample block), and the ranges of work units
+    /// that listed them (each followed by its exact tests).
+    pub unsure_entries: u64,
+    /// See `unsure_entries`.
+    pub unsure_ranges: u32,
 }
 
 /// How a run ended.
@@ -320,11 +326,14 @@ impl LightPasses {
                         (v >= 0.0).then_some(v)
                     })
                     .collect();
+                let (unsure_entries, unsure_ranges) = self.soft_occlusion.unsure_listed;
                 Some(SoftOutput {
                     visibility,
                     visible,
                     mask_words: words,
                     lut_built,
+                    unsure_entries,
+                    unsure_ranges,
                 })
             }
             None => None,

@@ -42,6 +42,12 @@ fn unsure_list_entries(ctx: &GpuContext) -> u64 {
     (ctx.info().limits.max_storage_buffer_range as u64 / 32).min(1 << 22)
 }
 
+/// The most unsure-list entries one work unit lists: one per lane, pair
+/// and block (64 · `LOOKUP_PAIR_CHUNK` · `blocks`).
+fn unit_entries(blocks: usize) -> u64 {
+    64 * LOOKUP_PAIR_CHUNK.1 as u64 * blocks as u64
+}
+
 /// The soft occlusion pipelines and the masks they write.
 pub struct SoftOcclusionPass {
     /// Every kernel by (kernel, alpha round, per-pixel rotation)
@@ -69,6 +75,10 @@ pub struct SoftOcclusionPass {
     /// The light's per-pixel rotation (`pixel_rotation.glsl`; zeros
     /// without one), uniform buffer.
     pub pixel_rotation: GrowBuffer,
+    /// Look-up mode, since [`SoftOcclusionPass::prepare`]: unsure-list
+    /// entries tested and ranges of work units run (without the runs
+    /// again of ranges that overflowed).
+    pub unsure_listed: (u64, u32),
 }
 
 /// One of the occlusion shaders: look-up mode's (exact masks) or the
@@ -142,6 +152,7 @@ impl SoftOcclusionPass {
             light_samples: GrowBuffer::storage_uniform("light_samples"),
             no_table: GrowBuffer::storage("plane_lut_unused"),
             pixel_rotation: GrowBuffer::storage_uniform("pixel_rotation"),
+            unsure_listed: (0, 0),
         })
     }
 
@@ -191,6 +202,7 @@ impl SoftOcclusionPass {
         alpha_casters: bool,
     ) -> Result<()> {
         self.make_pipelines(ctx, sl, alpha_casters)?;
+        self.unsure_listed = (0, 0);
         self.blocked
             .get(ctx, 4 * frame.mask_words * frame.n as u64)?;
         self.light_samples.get(ctx, 16 * MAX_SOFT_SAMPLES as u64)?;
@@ -292,8 +304,8 @@ impl SoftOcclusionPass {
         // when it had as many units (a frame like the last: no range runs
         // twice). A range whose list overflowed runs again, shorter, from
         // the counters before it: its sure bits ORed twice are the same.
-        let per_unit = 64 * LOOKUP_PAIR_CHUNK.1 as u64 * blocks as u64;
-        let capacity = self.capacity();
+        let per_unit = unit_entries(blocks);
+        let capacity = self.capacity(blocks);
         debug_assert!(capacity >= per_unit);
         let safe = (capacity / per_unit).max(1) as u32;
         let plan = if plan.0 == units { plan.1 } else { Vec::new() };
@@ -301,6 +313,7 @@ impl SoftOcclusionPass {
         let mut len = safe;
         let mut start = 0u32;
         let mut retry = false;
+        let mut listed_here = 0u64;
         while start < units {
             if !retry {
                 if let Some(l) = planned_len(&plan, start, capacity) {
@@ -334,6 +347,7 @@ impl SoftOcclusionPass {
             }
             retry = false;
             self.test_unsure(r, listed, passes.0, rotated)?;
+            listed_here += listed;
             done.push((start, len, listed));
             start += len;
             // The next range: as many units as this one's density fits
@@ -341,17 +355,20 @@ impl SoftOcclusionPass {
             let fit = capacity as f64 * len as f64 / (1.5 * listed as f64).max(1.0);
             len = fit.clamp(safe as f64, (4.0 * len as f64).max(safe as f64)) as u32;
         }
+        self.unsure_listed.0 += listed_here;
+        self.unsure_listed.1 += done.len() as u32;
         self.last_ranges = (units, done);
         Ok(())
     }
 
-    /// Entries the unsure list holds per range: its size, or the limit,
-    /// but never below one unit's bound (64 lanes × a unit's pairs × its
-    /// blocks, `LOOKUP_PAIR_CHUNK`: at most 64 · 512 · 8), so that a range
-    /// of one unit always fits.
-    fn capacity(&self) -> u64 {
-        let one_unit = 64 * LOOKUP_PAIR_CHUNK.1 as u64 * 8;
-        let limit = self.list_limit.unwrap_or(u64::MAX).max(one_unit);
+    /// Entries the unsure list holds per range for a light of `blocks`
+    /// blocks: its size, or the limit, but never below one unit's bound
+    /// ([`unit_entries`]), so that a range of one unit always fits.
+    fn capacity(&self, blocks: usize) -> u64 {
+        let limit = self
+            .list_limit
+            .unwrap_or(u64::MAX)
+            .max(unit_entries(blocks));
         (self.unsure_list.len() / 32).min(limit)
     }
 
@@ -403,7 +420,7 @@ impl SoftOcclusionPass {
         // soft.x: exact mode's block; the look-up modes': the list's capacity
         // (an integer field: as float bits it would be a denormal, which a
         // driver may flush to zero).
-        let capacity = self.capacity() as u32;
+        let capacity = self.capacity((r.frame.mask_words / 4).max(1) as usize) as u32;
         self.occlusion_pass(r, pipeline, (capacity, start, len), table, passes, counters)
     }
 
