@@ -373,7 +373,7 @@ pub mod table_cache {
             })
     }
 
-    /// The file of the table of `key` in `path`.
+    /// The file of the table of `key` in `dir`.
     pub fn path(dir: &Path, key: &[u32]) -> PathBuf {
         dir.join(format!("plane-lut-{:016x}.bin", hash(key)))
     }
