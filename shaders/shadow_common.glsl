@@ -52,8 +52,7 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 // tested one by one (a 64-bit sum: low and high word).
 #define COUNTER_UNSURE_LO 9
 #define COUNTER_UNSURE_HI 10
-// Soft occlusion, look-up mode: (pair, block) entries of the unsure list.
-#define COUNTER_UNSURE_PAIRS 11
+// 11: unused (the unsure list counts its entries per segment, soft_common.glsl).
 // Tile binning: (pair, tile) bins that a tile's view-sample box dropped,
 // per rule (clusters_common.glsl).
 #define COUNTER_CLUSTER_LIGHT_SIDE 12

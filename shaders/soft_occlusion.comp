@@ -102,8 +102,12 @@ layout(set = 0, binding = 8) buffer Counters { uint counters[]; };
 layout(set = 0, binding = 9) readonly buffer UnitOffsets { uint unit_offsets[]; };
 layout(set = 0, binding = 11) uniform usamplerBuffer lut_tb;         // LUT, all blocks
 // SURE mode: the (slot, triangle, block) and unsure bits of each pair whose
-// bits the table leaves unsure, for soft_occlusion_unsure.comp.
+// bits the table leaves unsure, for soft_occlusion_unsure.comp: segment k
+// (UNSURE_SEGMENTS) holds pc.soft.x entries from entry k * pc.soft.x, and
+// its count is unsure_counts[k * UNSURE_COUNT_STRIDE]; after the counts,
+// each unit's number of entries (the host plans its ranges by them).
 layout(set = 0, binding = 12) writeonly buffer UnsureList { uvec4 unsure_list[]; };
+layout(set = 0, binding = 19) buffer UnsureCounts { uint unsure_counts[]; };
 // Per tile: its view-sample box (clusters_bounds.comp; lo.w = 0: no box,
 // and then no chunk culling either: the clusters are off or the tile too big).
 layout(set = 0, binding = 13) uniform usamplerBuffer boxes_tb;
@@ -403,7 +407,7 @@ void main() {
     OcclusionUnit un = occlusion_unit();
     uint s = un.slot;
     uvec2 texel = un.texel;
-    uint tests = 0u, blocking = 0u, unsure_bits = 0u;
+    uint tests = 0u, blocking = 0u, unsure_bits = 0u, listed = 0u;
     uint words = light_blocks() * 4u;
     // LUT mode: every block in this pass; exact: block pc.soft.x only.
     uint first_block = EXACT != 0 ? pc.soft.x : 0u;
@@ -431,6 +435,8 @@ void main() {
         // sample that the per-sample test would block.
         float lo_x = EXACT_MASKS ? -1.0 - 1e-5 * (1.0 + length(ox) * inv_r) : -1.0;
 #if SURE
+        // This unit's segment of the unsure list (by its index in the dispatch).
+        uint segment = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) % UNSURE_SEGMENTS;
         // The rounding bound of the per-sample test against the planes
         // through x, in light radii: 64 f32 ulps of the magnitudes involved.
         float delta_x = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(x) + length(ox)) * inv_r;
@@ -472,10 +478,11 @@ void main() {
                 // writes in a loop that runs as often as the most blocks
                 // any lane has (a masked write costs as much as a real one).
                 uint entries = uint(bitCount(unsure_blocks));
+                listed += entries;
                 uint total = subgroupAdd(entries);
                 uint first = 0u;
                 if (subgroupElect() && total != 0u) {
-                    first = atomicAdd(counters[COUNTER_UNSURE_PAIRS], total);
+                    first = atomicAdd(unsure_counts[segment * UNSURE_COUNT_STRIDE], total);
                 }
                 uint e = subgroupBroadcastFirst(first) + subgroupExclusiveAdd(entries);
                 while (unsure_blocks != 0u) {
@@ -484,8 +491,9 @@ void main() {
                     uvec4 picked = unsure0;
                     FOR_BLOCKS(PICK_UNSURE)
                     if (e < pc.soft.x) {
-                        unsure_list[2u * e] = uvec4(s, p.ids.x, k, 0u);
-                        unsure_list[2u * e + 1u] = picked;
+                        uint at = segment * pc.soft.x + e;
+                        unsure_list[2u * at] = uvec4(s, p.ids.x, k, 0u);
+                        unsure_list[2u * at + 1u] = picked;
                     }
                     e++;
                 }
@@ -524,6 +532,12 @@ void main() {
         }
         FOR_BLOCKS(FLUSH_BLOCK)
     }
+#if SURE
+    uint sum_listed = subgroupAdd(listed);
+    if (subgroupElect() && sum_listed != 0u && un.exists) {
+        atomicAdd(unsure_counts[UNSURE_SEGMENTS * UNSURE_COUNT_STRIDE + un.index], sum_listed);
+    }
+#endif
     uint sum_tests = subgroupAdd(tests);
     uint sum_blocking = subgroupAdd(blocking);
     uint sum_unsure = subgroupAdd(unsure_bits);

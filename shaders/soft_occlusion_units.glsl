@@ -13,6 +13,8 @@
 #endif
 
 struct OcclusionUnit {
+    uint index;        // this unit's index (OCC_UNIT_BASE and on)
+    bool exists;       // index is one of the units (a dispatch may have more groups)
     uint pair_begin;   // this unit's pairs: tile_pairs[pair_begin..pair_end)
     uint pair_end;
     uint slot;         // this invocation's list slot (valid when has_sample)
@@ -27,6 +29,8 @@ OcclusionUnit occlusion_unit() {
     OcclusionUnit u;
     uint unit = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x + OCC_UNIT_BASE;
     uint tiles_per_face = pc.more.z;
+    u.index = unit;
+    u.exists = false;
     u.has_sample = false;
     u.first_of_texel = false;
     u.pair_begin = 0u;
@@ -40,6 +44,7 @@ OcclusionUnit occlusion_unit() {
     if (unit >= min(pc.more.w, unit_offsets[tiles_per_face * pc.sizes.w])) {
         return u;
     }
+    u.exists = true;
     // The tile: the last one whose first unit is at most `unit`.
     uint lo_t = 0u, hi_t = tiles_per_face * pc.sizes.w;
     while (hi_t - lo_t > 1u) {

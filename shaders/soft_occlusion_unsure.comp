@@ -2,7 +2,9 @@
 // Soft pass, look-up mode: the light samples the table left unsure for a
 // (view sample, caster) pair (soft_occlusion.comp with SURE), tested
 // exactly as exact mode tests every light sample, ORed into the view
-// sample's blocked mask. One invocation per entry of the unsure list.
+// sample's blocked mask. One invocation per entry of the unsure list:
+// workgroup z is the list's segment (pc.more.w entries each, from entry
+// z * pc.more.w), x and y the entry in it.
 // Twin: cpu::soft_occlusion::blocked_bits (exact).
 #extension GL_GOOGLE_include_directive : require
 #define LIGHT_SAMPLES_BINDING 4
@@ -23,12 +25,15 @@ layout(set = 0, binding = 5) uniform usamplerBuffer alpha_records;
 layout(set = 0, binding = 6) uniform usamplerBuffer alpha_textures;
 layout(set = 0, binding = 7) uniform usamplerBuffer alpha_texels;
 layout(set = 0, binding = 8) uniform usamplerBuffer list_sample_index_tb; // per slot: its view sample
+layout(set = 0, binding = 10) readonly buffer UnsureCounts { uint unsure_counts[]; };
 
 void main() {
-    uint e = linear_invocation();
-    if (e >= pc.more.w) {
+    uint segment = gl_WorkGroupID.z;
+    uint in_segment = linear_invocation();
+    if (in_segment >= min(unsure_counts[segment * UNSURE_COUNT_STRIDE], pc.more.w)) {
         return;
     }
+    uint e = segment * pc.more.w + in_segment;
     uvec4 head = texelFetch(unsure_tb, int(2u * e));
     uvec4 unsure = texelFetch(unsure_tb, int(2u * e + 1u));
     uint s = head.x, tri = head.y, block = head.z;

@@ -117,8 +117,9 @@ pub struct SoftStats {
     #[serde(default)]
     pub unsure_entries: u64,
     /// Look-up mode: ranges of work units the occlusion ran in, each
-    /// followed by the exact tests of its entries (more than one when the
-    /// list's buffer would overflow).
+    /// followed by the exact tests of its entries (planned to list about
+    /// 2^17 entries in each of the list's four segments: small lists run
+    /// faster; fewer when the list's buffer is smaller).
     #[serde(default)]
     pub unsure_ranges: u32,
 }

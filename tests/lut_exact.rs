@@ -203,8 +203,8 @@ fn the_table_is_kept_across_runs() {
 
 /// The unsure list in small ranges (and ranges that overflow and run again)
 /// gives the same masks as in the ranges without a limit (the first as long
-/// as the worst case fits, the next after the entries seen), and the limit
-/// does make more ranges.
+/// as the worst case fits, the next after the entries seen), and the ranges
+/// keep to the limit.
 #[test]
 fn unsure_list_ranges_equal_one_range() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
@@ -231,9 +231,9 @@ fn unsure_list_ranges_equal_one_range() {
         .unwrap();
     assert_eq!(one.visible, exact.visible);
     let soft = one.stats.soft.as_ref().unwrap();
-    // More than one unit's bound (64 lanes × 512 pairs × 2 blocks), the
-    // smallest range a limit allows.
-    let one_unit = 64 * 512 * 2;
+    // More than one unit's bound (64 lanes × 512 pairs × 2 blocks) in each
+    // of the list's segments: the smallest list a limit allows.
+    let one_unit = 64 * 512 * 2 * alias_free_shadows::gpu::soft_occlusion::UNSURE_SEGMENTS;
     eprintln!(
         "{} unsure entries in {} range(s) without a limit",
         soft.unsure_entries, soft.unsure_ranges
@@ -261,10 +261,15 @@ fn unsure_list_ranges_equal_one_range() {
             one.stats.view_sample_triangle_tests, ranged.stats.view_sample_triangle_tests,
             "ranges run again from the counters before them"
         );
+        // The list held at most the limit (raised to its floor) per range,
+        // so the entries took at least that many ranges: more than one.
         let ranged_soft = ranged.stats.soft.as_ref().unwrap();
+        let capacity = limit.max(one_unit);
+        let fewest = ranged_soft.unsure_entries.div_ceil(capacity);
         assert!(
-            ranged_soft.unsure_ranges > soft.unsure_ranges.max(1),
-            "list limit {limit}: {} range(s), {} without a limit",
+            fewest >= 2 && ranged_soft.unsure_ranges as u64 >= fewest,
+            "list limit {limit}: {} entries in {} range(s), {} without a limit",
+            ranged_soft.unsure_entries,
             ranged_soft.unsure_ranges,
             soft.unsure_ranges
         );

@@ -180,8 +180,8 @@ pub mod counter {
     pub const UNSURE_LO: usize = 9;
     /// High word of the unsure-bit count (see [`UNSURE_LO`]).
     pub const UNSURE_HI: usize = 10;
-    /// Soft occlusion, look-up mode: (pair, block) entries with unsure bits.
-    pub const UNSURE_PAIRS: usize = 11;
+    // 11: unused (the unsure list counts its entries per segment,
+    // `gpu::soft_occlusion::UNSURE_SEGMENTS`).
     /// Tile binning: (pair, tile) bins dropped because every view sample of
     /// the tile's box lies on the light's side of the caster's plane.
     pub const CLUSTER_LIGHT_SIDE: usize = 12;
