@@ -26,6 +26,9 @@ layout(set = 0, binding = 6) uniform usamplerBuffer alpha_textures;
 layout(set = 0, binding = 7) uniform usamplerBuffer alpha_texels;
 layout(set = 0, binding = 8) uniform usamplerBuffer list_sample_index_tb; // per slot: its view sample
 layout(set = 0, binding = 10) readonly buffer UnsureCounts { uint unsure_counts[]; };
+// The light samples again, as a texel buffer: the loop below reads one per
+// lane at its own index, a gather that texel buffers serve faster.
+layout(set = 0, binding = 11) uniform samplerBuffer light_samples_tb;
 
 void main() {
     uint segment = gl_WorkGroupID.z;
@@ -70,7 +73,7 @@ void main() {
         uint rest = word & (word - 1u);
         left = uvec4(w == 0u ? rest : left.x, w == 1u ? rest : left.y,
                      w == 2u ? rest : left.z, w == 3u ? rest : left.w);
-        vec3 l = light_samples[block * 128u + w * 32u + bit].xyz;
+        vec3 l = texelFetch(light_samples_tb, int(block * 128u + w * 32u + bit)).xyz;
         bool blocked = exact_blocks(l, n, sigma, a, x, m0, m1, m2, se);
         if (ALPHA != 0u && blocked) {
             vec2 bc = segment_barycentrics(x, l - x, a, b, c);

@@ -451,6 +451,7 @@ impl SoftOcclusionPass {
                 Binding::uniform_texel(&lists.list_sample_index, vk::Format::R32_UINT),
                 Binding::uniform(&self.pixel_rotation),
                 storage(&self.unsure_counts),
+                Binding::uniform_texel(&self.light_samples, vk::Format::R32G32B32A32_SFLOAT),
             ];
             let mut groups = groups(fullest as u32);
             groups[2] = UNSURE_SEGMENTS as u32;
@@ -624,7 +625,7 @@ fn unsure_pipeline(
     ctx.create_compute_pipeline(&ComputePipelineDesc {
         name,
         spirv: shaders::SOFT_OCCLUSION_UNSURE,
-        bindings: &[tb, tb, tb, sb, ub, tb, tb, tb, tb, ub, sb],
+        bindings: &[tb, tb, tb, sb, ub, tb, tb, tb, tb, ub, sb, tb],
         push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
         specialization: &[(5, alpha as u32), (6, rotated as u32)],
     })
