@@ -164,6 +164,15 @@ bool faces_light(vec3 p, vec3 n) {
     return is_point_light() ? dot(n, pc.origin.xyz - p) > 0.0 : dot(n, -pc.direction.xyz) > 0.0;
 }
 
+// Soft shadows: every light sample l passes dot(n, l - p) > 0 as f32
+// computes it: the light's bounding sphere (origin, R) is in front of the
+// surface by more than that test's rounding (~1e-6 of |n| (|origin - p| + R)).
+bool faces_whole_light(vec3 p, vec3 n) {
+    vec3 to_centre = pc.origin.xyz - p;
+    float r = pc.soft_light.x;
+    return dot(n, to_centre) > length(n) * (r + 1e-5 * (length(to_centre) + r));
+}
+
 // The basis of face f (right, up, forward).
 void face_basis(uint f, out vec3 r, out vec3 u, out vec3 w) {
     if (is_point_light()) {

@@ -21,11 +21,20 @@
 #define UNSURE_COUNT_STRIDE 16u
 
 // Light samples (xyz), read alike by every invocation: camera-relative, or
-// normalized (plane_lut_build); each shader defines LIGHT_SAMPLES_BINDING before
-// including this file.
+// normalized (plane_lut_build); a shader that reads them so defines
+// LIGHT_SAMPLES_BINDING before including this file (one that reads them at
+// a per-lane index binds a texel buffer of its own instead).
+#ifdef LIGHT_SAMPLES_BINDING
 layout(set = 0, binding = LIGHT_SAMPLES_BINDING, std140) uniform LightSamples { vec4 light_samples[MAX_LIGHT_SAMPLES]; };
+#endif
 
 uint light_blocks() { return (pc.soft.y + 127u) / 128u; }
+
+// The bits of the light samples first..first+31 that exist (of pc.soft.y).
+uint existing_samples(uint first) {
+    uint left = pc.soft.y - min(pc.soft.y, first);
+    return left >= 32u ? 0xffffffffu : (1u << left) - 1u;
+}
 
 float sign_not_zero(float v) { return v >= 0.0 ? 1.0 : -1.0; }
 

@@ -184,14 +184,8 @@ uvec4 bounds_maybe(uint texel, uint flags, uint block) {
 // resolve ignores them, and a sample whose masks are all ones is done).
 uvec4 past_end(uint block) {
     uint first = block * 128u;
-    uint count = pc.soft.y - min(first, pc.soft.y);
-    uvec4 w = uvec4(0u, 32u, 64u, 96u);
-    uvec4 valid = uvec4(min(uvec4(count) - min(uvec4(count), w), uvec4(32u)));
-    return uvec4(
-        valid.x >= 32u ? 0u : ~((1u << valid.x) - 1u),
-        valid.y >= 32u ? 0u : ~((1u << valid.y) - 1u),
-        valid.z >= 32u ? 0u : ~((1u << valid.z) - 1u),
-        valid.w >= 32u ? 0u : ~((1u << valid.w) - 1u));
+    return ~uvec4(existing_samples(first), existing_samples(first + 32u),
+                  existing_samples(first + 64u), existing_samples(first + 96u));
 }
 
 // SURE mode, block K. The table's texel (n_t, d_t) holds the samples with

@@ -7,7 +7,6 @@
 // z * pc.more.w), x and y the entry in it.
 // Twin: cpu::soft_occlusion::blocked_bits (exact).
 #extension GL_GOOGLE_include_directive : require
-#define LIGHT_SAMPLES_BINDING 4
 #include "soft_common.glsl"
 #include "alpha_common.glsl"
 #define PIXEL_ROTATION_BINDING 9
@@ -21,14 +20,15 @@ layout(set = 0, binding = 0) uniform usamplerBuffer unsure_tb;       // 2 texels
 layout(set = 0, binding = 1) uniform usamplerBuffer triangles_tb;    // GpuTriangle: 3 texels
 layout(set = 0, binding = 2) uniform usamplerBuffer list_samples_tb; // xyz float bits, w triangle id
 layout(set = 0, binding = 3) buffer Masks { uint masks[]; };         // per list slot: blocked bits
+// The light samples as a texel buffer, not soft_common's uniform buffer:
+// the loop below reads one per lane at its own index, a gather that
+// texel buffers serve faster.
+layout(set = 0, binding = 4) uniform samplerBuffer light_samples_tb;
 layout(set = 0, binding = 5) uniform usamplerBuffer alpha_records;
 layout(set = 0, binding = 6) uniform usamplerBuffer alpha_textures;
 layout(set = 0, binding = 7) uniform usamplerBuffer alpha_texels;
 layout(set = 0, binding = 8) uniform usamplerBuffer list_sample_index_tb; // per slot: its view sample
 layout(set = 0, binding = 10) readonly buffer UnsureCounts { uint unsure_counts[]; };
-// The light samples again, as a texel buffer: the loop below reads one per
-// lane at its own index, a gather that texel buffers serve faster.
-layout(set = 0, binding = 11) uniform samplerBuffer light_samples_tb;
 
 void main() {
     uint segment = gl_WorkGroupID.z;

@@ -444,14 +444,13 @@ impl SoftOcclusionPass {
                 Binding::uniform_texel(triangles, RGBA32UI),
                 Binding::uniform_texel(samples, RGBA32UI),
                 storage(&self.blocked),
-                Binding::uniform(&self.light_samples),
+                Binding::uniform_texel(&self.light_samples, vk::Format::R32G32B32A32_SFLOAT),
                 records,
                 textures,
                 alphas,
                 Binding::uniform_texel(&lists.list_sample_index, vk::Format::R32_UINT),
                 Binding::uniform(&self.pixel_rotation),
                 storage(&self.unsure_counts),
-                Binding::uniform_texel(&self.light_samples, vk::Format::R32G32B32A32_SFLOAT),
             ];
             let mut groups = groups(fullest as u32);
             groups[2] = UNSURE_SEGMENTS as u32;
@@ -625,7 +624,7 @@ fn unsure_pipeline(
     ctx.create_compute_pipeline(&ComputePipelineDesc {
         name,
         spirv: shaders::SOFT_OCCLUSION_UNSURE,
-        bindings: &[tb, tb, tb, sb, ub, tb, tb, tb, tb, ub, sb, tb],
+        bindings: &[tb, tb, tb, sb, tb, tb, tb, tb, tb, ub, sb],
         push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
         specialization: &[(5, alpha as u32), (6, rotated as u32)],
     })
