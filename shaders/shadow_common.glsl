@@ -52,7 +52,9 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 // tested one by one (a 64-bit sum: low and high word).
 #define COUNTER_UNSURE_LO 9
 #define COUNTER_UNSURE_HI 10
-// 11: unused (the unsure list counts its entries per segment, soft_common.glsl).
+// Soft occlusion: tests rejected by the caster's own plane (the whole
+// light's bounding sphere on the sample's side of it).
+#define COUNTER_PLANE_REJECTED 11
 // Tile binning: (pair, tile) bins that a tile's view-sample box dropped,
 // per rule (clusters_common.glsl).
 #define COUNTER_CLUSTER_LIGHT_SIDE 12
@@ -63,7 +65,11 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 // Soft occlusion: of those, the visits whose chunk's box lies outside the
 // caster's penumbra volume (clusters_common.glsl: chunk_rule).
 #define COUNTER_CLUSTER_OUTSIDE_PENUMBRA 15
-#define COUNTER_COUNT 16
+// Soft occlusion: tests past the bounding-sphere tests of all four planes,
+// which went on to the look-ups or the per-light-sample tests (the rest of
+// the tests were rejected by an edge's plane).
+#define COUNTER_PAST_SPHERE 16
+#define COUNTER_COUNT 17
 
 // Frame-wide parameters (push constants).
 struct LightPush {

@@ -321,11 +321,13 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra) {
 
 // What pair_planes decided for a (sample, pair): culled before the
 // test counter (outside the pair's region, the sample's own triangle, on
-// its plane or behind a closed caster), culled by a plane that leaves the
-// light's bounding sphere on x's side (counted as a test), or passed.
+// its plane or behind a closed caster), culled by the caster's plane or by
+// an edge's plane leaving the light's bounding sphere on x's side (each
+// counted as a test, and counted apart), or passed.
 #define PAIR_CULLED 0u
-#define PAIR_TESTED 1u
-#define PAIR_PASSED 2u
+#define PAIR_PLANE_REJECTED 1u
+#define PAIR_EDGE_REJECTED 2u
+#define PAIR_PASSED 3u
 struct PairPlanes {
     uvec4 ids;
     vec3 a, b, c, n, ns, m0, m1, m2, u0, u1, u2;
@@ -378,7 +380,7 @@ uint pair_planes(uint pi, uvec2 texel, uint own, vec3 x, vec3 o, float inv_r, ve
     p.d0 = dot(ns, ao) * inv_r;
     float lo_a = EXACT_MASKS ? -1.0 - 1e-5 * (1.0 + length(ao) * inv_r) : -1.0;
     if (!(p.d0 > lo_a)) {
-        return PAIR_TESTED; // the whole light is on x's side of T
+        return PAIR_PLANE_REJECTED; // the whole light is on x's side of T
     }
     // The planes through x and each edge, facing out of T's
     // cone from x (one determinant orients all three alike).
@@ -394,14 +396,14 @@ uint pair_planes(uint pi, uvec2 texel, uint own, vec3 x, vec3 o, float inv_r, ve
     p.d2 = dot(p.u1, ox) * inv_r;
     p.u2 = (-se * inversesqrt(dot(m2, m2))) * m2;
     p.d3 = dot(p.u2, ox) * inv_r;
-    return p.d1 > lo_x && p.d2 > lo_x && p.d3 > lo_x ? PAIR_PASSED : PAIR_TESTED;
+    return p.d1 > lo_x && p.d2 > lo_x && p.d3 > lo_x ? PAIR_PASSED : PAIR_EDGE_REJECTED;
 }
 
 void main() {
     OcclusionUnit un = occlusion_unit();
     uint s = un.slot;
     uvec2 texel = un.texel;
-    uint tests = 0u, blocking = 0u, unsure_bits = 0u, listed = 0u;
+    uint tests = 0u, blocking = 0u, unsure_bits = 0u, listed = 0u, plane_rejected = 0u, past_sphere = 0u;
     uint words = light_blocks() * 4u;
     // LUT mode: every block in this pass; exact: block pc.soft.x only.
     uint first_block = EXACT != 0 ? pc.soft.x : 0u;
@@ -447,7 +449,9 @@ void main() {
             for (uint j = 0u; j < window; j++) {
                 PairPlanes p;
                 uint rule = pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
-                tests += rule >= PAIR_TESTED ? 1u : 0u;
+                tests += rule >= PAIR_PLANE_REJECTED ? 1u : 0u;
+                plane_rejected += rule == PAIR_PLANE_REJECTED ? 1u : 0u;
+                past_sphere += rule == PAIR_PASSED ? 1u : 0u;
                 passed |= rule == PAIR_PASSED ? 1u << j : 0u;
             }
             while (passed != 0u && !full) {
@@ -537,6 +541,8 @@ void main() {
     uint sum_unsure = subgroupAdd(unsure_bits);
     uint sum_dropped = subgroupAdd(chunk_dropped);
     uint sum_penumbra = subgroupAdd(chunk_penumbra);
+    uint sum_plane = subgroupAdd(plane_rejected);
+    uint sum_past = subgroupAdd(past_sphere);
     if (subgroupElect() && sum_dropped != 0u) {
         atomicAdd(counters[COUNTER_CLUSTER_CHUNK], sum_dropped);
         atomicAdd(counters[COUNTER_CLUSTER_OUTSIDE_PENUMBRA], sum_penumbra);
@@ -544,6 +550,8 @@ void main() {
     if (subgroupElect() && (sum_tests | sum_blocking | sum_unsure) != 0u) {
         atomicAdd(counters[COUNTER_TESTS], sum_tests);
         atomicAdd(counters[COUNTER_BLOCKING], sum_blocking);
+        atomicAdd(counters[COUNTER_PLANE_REJECTED], sum_plane);
+        atomicAdd(counters[COUNTER_PAST_SPHERE], sum_past);
         // A 64-bit sum in two words: the carry of the low word.
         uint before = atomicAdd(counters[COUNTER_UNSURE_LO], sum_unsure);
         if (before + sum_unsure < before) {

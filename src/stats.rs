@@ -102,6 +102,21 @@ pub struct SoftStats {
     /// `blocking_tests` as a fraction (0 to 1) of all
     /// view-sample–triangle tests.
     pub blocking_share: f64,
+    /// Tests that the caster's own plane rejected: the light's whole
+    /// bounding sphere on the sample's side of it (`COUNTER_PLANE_REJECTED`).
+    #[serde(default)]
+    pub plane_rejected_tests: u32,
+    /// Tests that a plane through the sample and one of the caster's edges
+    /// rejected: the light's whole bounding sphere outside the caster's
+    /// cone from the sample.
+    #[serde(default)]
+    pub edge_rejected_tests: u32,
+    /// Tests past those bounding-sphere tests, which went on to the
+    /// look-ups (or, in exact mode, to every light sample); with the two
+    /// above they make up all the view-sample–triangle tests
+    /// (`COUNTER_PAST_SPHERE`).
+    #[serde(default)]
+    pub past_sphere_tests: u32,
     /// Whether this run built the plane look-up texture (it is built once
     /// per light shape and reused: its time, `ms.lut_build`, appears only
     /// in the frame that built it).
@@ -183,6 +198,11 @@ impl ShadowStats {
                 lut_resolution: sl.lut_resolution,
                 blocking_tests: c[counter::BLOCKING],
                 blocking_share: c[counter::BLOCKING] as f64 / c[counter::TESTS].max(1) as f64,
+                plane_rejected_tests: c[counter::PLANE_REJECTED],
+                edge_rejected_tests: c[counter::TESTS]
+                    .saturating_sub(c[counter::PLANE_REJECTED])
+                    .saturating_sub(c[counter::PAST_SPHERE]),
+                past_sphere_tests: c[counter::PAST_SPHERE],
                 lut_built: out.soft.as_ref().is_some_and(|s| s.lut_built),
                 unsure_bits: unsure,
                 unsure_share: unsure as f64

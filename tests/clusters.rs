@@ -44,6 +44,8 @@ fn soft_lights(desc: &SceneDescription) -> Vec<(&'static str, Light)> {
 #[test]
 fn clusters_change_no_result() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    // Soft tests by outcome: the caster's plane, an edge's plane, past both.
+    let mut outcomes = [0u64; 3];
     let (mut light_side, mut behind_closed, mut penumbra, mut chunk, mut cases) =
         (0u64, 0u64, 0u64, 0u64, 0);
     for spec in [
@@ -132,6 +134,20 @@ fn clusters_change_no_result() {
                     with.stats.view_sample_triangle_tests,
                     with.stats.chunk_pairs_dropped,
                 );
+                // Every test ends at the caster's plane, at an edge's plane
+                // or past both; only those past both can block.
+                for run in [&with, &without] {
+                    let (st, soft) = (&run.stats, run.stats.soft.as_ref().unwrap());
+                    assert!(
+                        soft.plane_rejected_tests as u64 + soft.past_sphere_tests as u64
+                            <= st.view_sample_triangle_tests as u64
+                            && soft.blocking_tests <= soft.past_sphere_tests,
+                        "{spec}, {name}, {mode:?}: {soft:?}"
+                    );
+                    outcomes[0] += soft.plane_rejected_tests as u64;
+                    outcomes[1] += soft.edge_rejected_tests as u64;
+                    outcomes[2] += soft.past_sphere_tests as u64;
+                }
                 chunk += with.stats.chunk_pairs_dropped as u64;
                 light_side += a;
                 behind_closed += b;
@@ -147,5 +163,10 @@ fn clusters_change_no_result() {
         light_side > 0 && behind_closed > 0 && penumbra > 0 && chunk > 0,
         "every rule exercised"
     );
+    eprintln!(
+        "tests: {} rejected by the caster's plane, {} by an edge's plane, {} past both",
+        outcomes[0], outcomes[1], outcomes[2]
+    );
+    assert!(outcomes.iter().all(|&n| n > 0), "every test outcome seen");
     engine.context().check_validation().unwrap();
 }

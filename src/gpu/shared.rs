@@ -180,8 +180,9 @@ pub mod counter {
     pub const UNSURE_LO: usize = 9;
     /// High word of the unsure-bit count (see [`UNSURE_LO`]).
     pub const UNSURE_HI: usize = 10;
-    // 11: unused (the unsure list counts its entries per segment,
-    // `gpu::soft_occlusion::UNSURE_SEGMENTS`).
+    /// Soft occlusion: tests rejected by the caster's own plane (the whole
+    /// light's bounding sphere on the sample's side of it).
+    pub const PLANE_REJECTED: usize = 11;
     /// Tile binning: (pair, tile) bins dropped because every view sample of
     /// the tile's box lies on the light's side of the caster's plane.
     pub const CLUSTER_LIGHT_SIDE: usize = 12;
@@ -194,9 +195,13 @@ pub mod counter {
     /// the caster's penumbra volume (one edge's plane through any of its
     /// samples leaves the whole light outside the caster's cone).
     pub const CLUSTER_OUTSIDE_PENUMBRA: usize = 15;
+    /// Soft occlusion: tests past the bounding-sphere tests of all four
+    /// planes, which went on to the look-ups or the per-light-sample tests
+    /// (the other tests were rejected by an edge's plane).
+    pub const PAST_SPHERE: usize = 16;
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.
-    pub const COUNT: usize = 16;
+    pub const COUNT: usize = 17;
 }
 
 /// `LightPush`: push constants of every shadow pass of a light, hard and soft.
