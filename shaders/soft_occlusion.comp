@@ -449,11 +449,12 @@ void main() {
             for (uint j = 0u; j < window; j++) {
                 PairPlanes p;
                 uint rule = pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
-                tests += rule >= PAIR_PLANE_REJECTED ? 1u : 0u;
-                plane_rejected += rule == PAIR_PLANE_REJECTED ? 1u : 0u;
-                past_sphere += rule == PAIR_PASSED ? 1u : 0u;
+                // Tests in the low half, plane rejections in the high half
+                // (at most OCC_PAIR_CHUNK of each per invocation): one add.
+                tests += rule == PAIR_CULLED ? 0u : (rule == PAIR_PLANE_REJECTED ? 0x10001u : 1u);
                 passed |= rule == PAIR_PASSED ? 1u << j : 0u;
             }
+            past_sphere += uint(bitCount(passed));
             while (passed != 0u && !full) {
                 uint j = uint(findLSB(passed));
                 passed &= passed - 1u;
@@ -536,6 +537,8 @@ void main() {
         atomicAdd(unsure_counts[UNSURE_SEGMENTS * UNSURE_COUNT_STRIDE + un.index], sum_listed);
     }
 #endif
+    plane_rejected = tests >> 16;
+    tests &= 0xffffu;
     uint sum_tests = subgroupAdd(tests);
     uint sum_blocking = subgroupAdd(blocking);
     uint sum_unsure = subgroupAdd(unsure_bits);
