@@ -248,6 +248,7 @@ uvec4 past_end(uint block) {
 // compacted before the loop: on lavapipe every lane runs every iteration,
 // so only a shorter loop saves time. The pairs dropped are ones every lane
 // would skip by occlusion's own early outs: the masks do not change.
+// (main() counts a lane's tests in 16 bits: MAX_KEPT stays below 65536.)
 #define MAX_KEPT 512u
 shared uint kept_pairs[MAX_KEPT];
 shared uint kept_count;
@@ -403,7 +404,7 @@ void main() {
     OcclusionUnit un = occlusion_unit();
     uint s = un.slot;
     uvec2 texel = un.texel;
-    uint tests = 0u, blocking = 0u, unsure_bits = 0u, listed = 0u, plane_rejected = 0u, past_sphere = 0u;
+    uint tests = 0u, blocking = 0u, unsure_bits = 0u, listed = 0u, past_sphere = 0u;
     uint words = light_blocks() * 4u;
     // LUT mode: every block in this pass; exact: block pc.soft.x only.
     uint first_block = EXACT != 0 ? pc.soft.x : 0u;
@@ -450,7 +451,7 @@ void main() {
                 PairPlanes p;
                 uint rule = pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
                 // Tests in the low half, plane rejections in the high half
-                // (at most OCC_PAIR_CHUNK of each per invocation): one add.
+                // (at most MAX_KEPT of each per invocation): one add.
                 tests += rule == PAIR_CULLED ? 0u : (rule == PAIR_PLANE_REJECTED ? 0x10001u : 1u);
                 passed |= rule == PAIR_PASSED ? 1u << j : 0u;
             }
@@ -537,7 +538,7 @@ void main() {
         atomicAdd(unsure_counts[UNSURE_SEGMENTS * UNSURE_COUNT_STRIDE + un.index], sum_listed);
     }
 #endif
-    plane_rejected = tests >> 16;
+    uint plane_rejected = tests >> 16;
     tests &= 0xffffu;
     uint sum_tests = subgroupAdd(tests);
     uint sum_blocking = subgroupAdd(blocking);
