@@ -796,13 +796,17 @@ fn register_font() -> bool {
     })
 }
 
-const METHODS: [&str; 6] = [
+/// The soft-shadow methods drawn, in legend order (colours by position).
+/// `embree` rows exist only in a build with the `embree` feature.
+const METHODS: [&str; 8] = [
     "ours-lut",
     "ours-exact",
     "pcf",
     "pcss",
     "per-sample-maps",
     "oracle",
+    "ours-approx",
+    "embree",
 ];
 
 /// Log time against log RMSE of the soft-shadow methods, one curve per
