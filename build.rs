@@ -23,13 +23,19 @@ use std::path::{Path, PathBuf};
 
 /// Extra compilations of a shader with preprocessor definitions, for code
 /// that must be compiled out rather than skipped by a branch (lavapipe pays
-/// for guarded code it does not run): (shader stem, constant, definitions).
+/// for guarded code it does not run): (a compute shader's stem or a
+/// graphics stage's file name, constant, definitions).
 type Variant = (
     &'static str,
     &'static str,
     &'static [(&'static str, &'static str)],
 );
 const VARIANTS: &[Variant] = &[
+    (
+        "view_samples.frag",
+        "VIEW_SAMPLES_OPAQUE_FRAG",
+        &[("OPAQUE", "1")],
+    ),
     (
         "tile_bin_units",
         "TILE_BIN_UNITS_SAMPLE_LANES",
@@ -238,7 +244,14 @@ fn builds(entries: &[PathBuf]) -> Vec<Build> {
             const_name: name,
             defines: Vec::new(),
         });
-        for (v_stem, v_name, defines) in VARIANTS.iter().filter(|v| v.0 == stem && ext == "comp") {
+        // A compute shader's variants name its stem, a graphics stage's
+        // its file name (`view_samples.frag`).
+        let file = format!("{stem}.{ext}");
+        let of_this = |v: &&Variant| match ext {
+            "comp" => v.0 == stem,
+            _ => v.0 == file,
+        };
+        for (v_stem, v_name, defines) in VARIANTS.iter().filter(of_this) {
             builds.push(Build {
                 source: path.clone(),
                 ext: ext.to_string(),

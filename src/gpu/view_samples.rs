@@ -15,6 +15,10 @@
 //!    culling; the fragment shader writes `id + 1` to an `R32_UINT`
 //!    attachment (0 = nothing). The rasteriser samples pixel centres, so a
 //!    pixel's id is the triangle its centre ray meets, up to edge rules.
+//!    A frame without alpha-tested triangles draws with the shader's
+//!    `OPAQUE` variant, which discards nothing, so its depth test runs
+//!    before the shader: the same ids, and lavapipe skips the hidden
+//!    fragments.
 //! 2. **Resolve** (`shaders/view_samples_resolve.comp`): per pixel, the
 //!    pixel-centre ray (same formula as [`Camera::ray_direction`], in f32) is
 //!    intersected with that triangle's plane — exact rather than an
@@ -80,7 +84,12 @@ struct Targets {
 /// The view-sample pass: pipelines made once, render targets kept per image
 /// size, buffers kept across frames. See the [module documentation](self).
 pub struct ViewSamplePass {
+    /// With the alpha tests (a fragment may be discarded).
     raster: GraphicsPipeline,
+    /// Without them, for frames with no alpha-tested triangle: the depth
+    /// test runs before the fragment shader, which on lavapipe halves the
+    /// raster of a model with much depth complexity.
+    raster_opaque: GraphicsPipeline,
     resolve: ComputePipeline,
     targets: Option<Targets>,
     /// The triangles, also the vertex buffer.
@@ -102,22 +111,29 @@ const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 impl ViewSamplePass {
     /// Builds both pipelines; fails when the device's queue cannot do graphics.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let raster = ctx.create_graphics_pipeline(&GraphicsPipelineDesc {
-            name: "view_samples_raster",
-            vertex: shaders::VIEW_SAMPLES_VERT,
-            fragment: shaders::VIEW_SAMPLES_FRAG,
-            vertex_stride: 16,
-            attributes: &[VertexAttribute {
-                location: 0,
-                format: vk::Format::R32G32B32_SFLOAT,
-                offset: 0,
-            }],
-            color_formats: &[ID_FORMAT],
-            depth: Some((DEPTH_FORMAT, vk::CompareOp::GREATER)),
-            cull_mode: vk::CullModeFlags::NONE,
-            push_constant_bytes: std::mem::size_of::<RasterPush>() as u32,
-            bindings: &[DescriptorKind::UniformTexelBuffer; 4],
-        })?;
+        let raster_with = |name, fragment| {
+            ctx.create_graphics_pipeline(&GraphicsPipelineDesc {
+                name,
+                vertex: shaders::VIEW_SAMPLES_VERT,
+                fragment,
+                vertex_stride: 16,
+                attributes: &[VertexAttribute {
+                    location: 0,
+                    format: vk::Format::R32G32B32_SFLOAT,
+                    offset: 0,
+                }],
+                color_formats: &[ID_FORMAT],
+                depth: Some((DEPTH_FORMAT, vk::CompareOp::GREATER)),
+                cull_mode: vk::CullModeFlags::NONE,
+                push_constant_bytes: std::mem::size_of::<RasterPush>() as u32,
+                bindings: &[DescriptorKind::UniformTexelBuffer; 4],
+            })
+        };
+        let raster = raster_with("view_samples_raster", shaders::VIEW_SAMPLES_FRAG)?;
+        let raster_opaque = raster_with(
+            "view_samples_raster_opaque",
+            shaders::VIEW_SAMPLES_OPAQUE_FRAG,
+        )?;
         let resolve = ctx.create_compute_pipeline(&ComputePipelineDesc {
             name: "view_samples_resolve",
             spirv: shaders::VIEW_SAMPLES_RESOLVE,
@@ -133,6 +149,7 @@ impl ViewSamplePass {
         triangles.usage |= vk::BufferUsageFlags::VERTEX_BUFFER;
         Ok(ViewSamplePass {
             raster,
+            raster_opaque,
             resolve,
             targets: None,
             triangles: GrowBuffer::new(triangles),
@@ -217,8 +234,12 @@ impl ViewSamplePass {
             textures,
             alphas,
         ];
+        let raster = match any_alpha {
+            true => &self.raster,
+            false => &self.raster_opaque,
+        };
         rec.draw_pass(
-            &self.raster,
+            raster,
             &targets.framebuffer,
             &clear,
             Some(tri_buf),
