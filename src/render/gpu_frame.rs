@@ -61,7 +61,7 @@ impl Engine {
         for k in 0..desc.lights.len() {
             lights.push(self.light(desc, k, fv.n, fv.triangles)?);
         }
-        Ok(self.finish_frame(desc, &fv, &lights, (t0, before), None))
+        Ok(self.finish_frame(desc, fv, &lights, (t0, before), None))
     }
 
     /// A frame's step 1: its triangles (camera-relative, alpha tests
@@ -114,10 +114,12 @@ impl Engine {
 
     /// A frame's last steps: shading with the lights' results, the
     /// statistics (`reused`: what came from an earlier frame) and the dump.
+    /// The frame takes `fv`'s view samples (a copy of 262,144 of them cost
+    /// 7 ms here).
     pub(super) fn finish_frame(
         &mut self,
         desc: &SceneDescription,
-        fv: &FrameView,
+        fv: FrameView,
         lights: &[LightResult],
         (t0, before): (Instant, crate::vulkan::Allocations),
         reused: Option<crate::stats::Reused>,
@@ -169,7 +171,7 @@ impl Engine {
         Frame {
             dump,
             image,
-            view: fv.view.clone(),
+            view: fv.view,
             stats,
         }
     }

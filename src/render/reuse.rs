@@ -142,7 +142,7 @@ impl Engine {
             view_samples: same_view.is_some(),
             lights: reused_lights,
         };
-        let frame = self.finish_frame(desc, &fv, &lights, (t0, before), Some(reused));
+        let frame = self.finish_frame(desc, fv.clone(), &lights, (t0, before), Some(reused));
         reuse.last = Some(Kept {
             generations: generations.clone(),
             engine_frame: self.frame_id,
