@@ -60,10 +60,11 @@ enum Command {
     /// List the Vulkan devices and their limits.
     Info,
     /// Run time against error: our soft shadows and the baselines (shadow
-    /// map + PCF, PCSS, one shadow map per light sample, the CPU oracle)
-    /// over their parameters, against a converged oracle image, plus our
-    /// hard shadows against one shadow map; writes bench.csv, bench.png
-    /// and bench-ratios.md (the key ratios, also printed).
+    /// map + PCF, PCSS, one shadow map per light sample, the CPU oracle,
+    /// and Embree's shadow rays in a build with the `embree` feature) over
+    /// their parameters, against a converged oracle image, plus our hard
+    /// shadows against one shadow map (and Embree); writes bench.csv,
+    /// bench.png and bench-ratios.md (the key ratios, also printed).
     Bench(BenchArgs),
     /// Write a built-in scene as a binary glTF (.glb) file.
     Export {
