@@ -18,7 +18,9 @@ const AMBIENT: f64 = 0.12;
 /// Albedo of surfaces without a material.
 const ALBEDO: f64 = 0.8;
 
-fn to_srgb8(linear: f64) -> u8 {
+/// Linear to 8-bit sRGB by the formula (one `powf`): what [`to_srgb8`]
+/// computes without it.
+fn to_srgb8_formula(linear: f64) -> u8 {
     let c = linear.clamp(0.0, 1.0);
     let s = if c <= 0.0031308 {
         12.92 * c
@@ -26,6 +28,66 @@ fn to_srgb8(linear: f64) -> u8 {
         1.055 * c.powf(1.0 / 2.4) - 0.055
     };
     (s * 255.0 + 0.5) as u8
+}
+
+/// Buckets of [0, 1] in [`SrgbTable`]: fine enough that a bucket spans at
+/// most one step of the 8-bit code (the steepest part, near 0, climbs
+/// 3294 codes per unit).
+const SRGB_BUCKETS: usize = 4096;
+
+/// [`to_srgb8_formula`] as tables: per code k, the least linear value
+/// that reaches it, and per bucket the code at its start.
+struct SrgbTable {
+    /// `first[k]`: the least f64 in [0, 1] whose code is at least k
+    /// (`first[0]` = 0).
+    first: [f64; 256],
+    /// The code of each bucket's first value, `b / SRGB_BUCKETS`.
+    bucket: Vec<u8>,
+}
+
+fn srgb_table() -> &'static SrgbTable {
+    static TABLE: std::sync::OnceLock<SrgbTable> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        // Bisection over the bit patterns of [0, 1] (ordered like the
+        // values for non-negative floats): the formula's code does not
+        // decrease as its argument grows.
+        let first = std::array::from_fn(|k| {
+            let (mut lo, mut hi) = (0u64, 1f64.to_bits());
+            if to_srgb8_formula(0.0) as usize >= k {
+                return 0.0;
+            }
+            while hi - lo > 1 {
+                let mid = lo + (hi - lo) / 2;
+                if to_srgb8_formula(f64::from_bits(mid)) as usize >= k {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            f64::from_bits(hi)
+        });
+        let bucket = (0..SRGB_BUCKETS)
+            .map(|b| to_srgb8_formula(b as f64 / SRGB_BUCKETS as f64))
+            .collect();
+        SrgbTable { first, bucket }
+    })
+}
+
+/// Linear to 8-bit sRGB: [`to_srgb8_formula`]'s code, found from its
+/// bucket's code and the codes' thresholds (three `powf` per pixel were
+/// most of a 512² frame's shading time).
+fn to_srgb8(linear: f64) -> u8 {
+    if linear.is_nan() || linear <= 0.0 {
+        return 0; // as the formula's cast gives
+    }
+    let c = linear.min(1.0);
+    let table = srgb_table();
+    // c * SRGB_BUCKETS is exact (a power of two): the bucket starts at or below c.
+    let mut k = table.bucket[((c * SRGB_BUCKETS as f64) as usize).min(SRGB_BUCKETS - 1)];
+    while k < 255 && table.first[k as usize + 1] <= c {
+        k += 1;
+    }
+    k
 }
 
 /// sRGB 8-bit to linear, as a table (texture look-ups need four texels
@@ -281,6 +343,39 @@ pub fn faces_light(position: DVec3, normal: DVec3, samples: &crate::light::Light
         crate::light::LightSamples::Direction(d) => normal.dot(-*d) > 0.0,
         crate::light::LightSamples::Positions(p) => {
             p.iter().any(|s| normal.dot(*s - position) > 0.0)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The tables give the formula's code for every value tried: a sweep
+    /// of [−0.1, 1.1] and the floats on both sides of every threshold.
+    #[test]
+    fn srgb8_tables_match_the_formula() {
+        let n = 2_000_000;
+        for i in 0..=n {
+            let c = -0.1 + 1.2 * i as f64 / n as f64;
+            assert_eq!(to_srgb8(c), to_srgb8_formula(c), "at {c}");
+        }
+        for &t in &srgb_table().first {
+            for d in -3i64..=3 {
+                let c = f64::from_bits((t.to_bits() as i64 + d).max(0) as u64);
+                assert_eq!(to_srgb8(c), to_srgb8_formula(c), "at {c}");
+            }
+        }
+        for c in [
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            -0.0,
+            0.0,
+            1.0,
+            2.0,
+        ] {
+            assert_eq!(to_srgb8(c), to_srgb8_formula(c), "at {c}");
         }
     }
 }
