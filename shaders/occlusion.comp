@@ -10,6 +10,8 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_shuffle : require
 #include "shadow_common.glsl"
 #include "alpha_common.glsl"
 layout(local_size_x = 64) in;
@@ -68,31 +70,50 @@ void main() {
     begin += (local_unit % pair_chunks) * OCC_PAIR_CHUNK;
     end = min(end, begin + OCC_PAIR_CHUNK);
     uint tests = 0u, visited = 0u;
-    if (texel.x < res && texel.y < res && begin != end) {
-        uint t = texel_index(face, texel);
-        uint count = counts[t];
-        uint list_begin = offsets[t] + min(count, sample_chunk * OCC_SAMPLE_CHUNK);
-        uint list_end = offsets[t] + min(count, (sample_chunk + 1u) * OCC_SAMPLE_CHUNK);
+    // Every lane of the unit runs the window loop (its first loop's
+    // shuffles need the whole subgroup); lanes without samples find no
+    // pair touching.
+    bool in_tile = texel.x < res && texel.y < res && begin != end;
+    uint t = in_tile ? texel_index(face, texel) : 0u;
+    uint count = in_tile ? counts[t] : 0u;
+    uint list_first = in_tile ? offsets[t] : 0u;
+    uint list_begin = list_first + min(count, sample_chunk * OCC_SAMPLE_CHUNK);
+    uint list_end = list_first + min(count, (sample_chunk + 1u) * OCC_SAMPLE_CHUNK);
+    {
         // Per window (PAIR_WINDOW, shadow_common.glsl): which pairs'
         // projections may touch the texel, then the list against those
-        // only. Lanes without samples stop at once.
+        // only. A subgroup whose lanes have no samples stops at once.
         bool has_list = list_begin != list_end;
         vec2 lo = vec2(texel), hi = lo + 1.0;
-        for (uint w0 = begin; has_list && w0 < end; w0 += PAIR_WINDOW) {
+        for (uint w0 = begin; w0 < end; w0 += PAIR_WINDOW) {
+            if (subgroupBallotBitCount(subgroupBallot(has_list)) == 0u) {
+                break;
+            }
             uint window = min(PAIR_WINDOW, end - w0);
             uint touching = 0u;
-            for (uint j = 0u; j < window; j++) {
-                uint pi = texelFetch(tile_pairs_tb, int(w0 + j)).x;
-                CasterFace cf;
-                cf.ids = texelFetch(pairs_tb, int(4u * pi));
-                cf.e0 = uintBitsToFloat(texelFetch(pairs_tb, int(4u * pi + 1u)));
-                cf.e1 = uintBitsToFloat(texelFetch(pairs_tb, int(4u * pi + 2u)));
-                cf.e2 = uintBitsToFloat(texelFetch(pairs_tb, int(4u * pi + 3u)));
-                uvec2 rmin = uvec2(cf.ids.z & 0xffffu, cf.ids.z >> 16);
-                uvec2 rmax = uvec2(cf.ids.w & 0xffffu, cf.ids.w >> 16);
-                bool touches = !(any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax)))
-                    && (cf.e0.w == 0.0 || square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, vec2(cf.e0.w, cf.e1.w), lo, hi));
-                touching |= touches ? 1u << j : 0u;
+            // The first loop's pairs are the same for every lane: lane k
+            // fetches pair j0 + k of each `group` and the others take it
+            // by a shuffle (on lavapipe a gather costs a load per lane).
+            uint group = min(gl_SubgroupSize, PAIR_WINDOW);
+            for (uint j0 = 0u; j0 < window; j0 += group) {
+                uint pk = texelFetch(tile_pairs_tb, int(w0 + min(j0 + gl_SubgroupInvocationID % group, window - 1u))).x;
+                uvec4 ids_k = texelFetch(pairs_tb, int(4u * pk));
+                uvec4 e0_k = texelFetch(pairs_tb, int(4u * pk + 1u));
+                uvec4 e1_k = texelFetch(pairs_tb, int(4u * pk + 2u));
+                uvec4 e2_k = texelFetch(pairs_tb, int(4u * pk + 3u));
+                for (uint j = j0; j < min(j0 + group, window); j++) {
+                    uint lane = j - j0;
+                    CasterFace cf;
+                    cf.ids = subgroupShuffle(ids_k, lane);
+                    cf.e0 = uintBitsToFloat(subgroupShuffle(e0_k, lane));
+                    cf.e1 = uintBitsToFloat(subgroupShuffle(e1_k, lane));
+                    cf.e2 = uintBitsToFloat(subgroupShuffle(e2_k, lane));
+                    uvec2 rmin = uvec2(cf.ids.z & 0xffffu, cf.ids.z >> 16);
+                    uvec2 rmax = uvec2(cf.ids.w & 0xffffu, cf.ids.w >> 16);
+                    bool touches = has_list && !(any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax)))
+                        && (cf.e0.w == 0.0 || square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, vec2(cf.e0.w, cf.e1.w), lo, hi));
+                    touching |= touches ? 1u << j : 0u;
+                }
             }
             while (touching != 0u) {
                 uint j = uint(findLSB(touching));

@@ -20,6 +20,7 @@
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_shuffle : require
 #define LIGHT_SAMPLES_BINDING 10
 #include "soft_common.glsl"
 #include "clusters_common.glsl"
@@ -340,19 +341,39 @@ struct PairPlanes {
 // triangle `own`): its supporting plane facing x (ns, d0) and the planes
 // through x and each edge (u0..u2, d1..d3), in light radii from the
 // light's centre o; x and the caster are turned back by `turn_back`.
-uint pair_planes(uint pi, uvec2 texel, uint own, vec3 x, vec3 o, float inv_r, vec3 ox,
-                 float lo_x, mat3 turn_back, out PairPlanes p) {
-    p.ids = texelFetch(pairs_tb, int(4u * pi));
+// A pair's texels: its CasterFace's first (ids) and its triangle's three.
+struct PairTexels {
+    uvec4 ids, t0, t1, t2;
+};
+
+PairTexels fetch_pair(uint pi) {
+    PairTexels f;
+    f.ids = texelFetch(pairs_tb, int(4u * pi));
+    f.t0 = texelFetch(triangles_tb, int(3u * f.ids.x));
+    f.t1 = texelFetch(triangles_tb, int(3u * f.ids.x + 1u));
+    f.t2 = texelFetch(triangles_tb, int(3u * f.ids.x + 2u));
+    return f;
+}
+
+// Lane `lane`'s PairTexels, for every lane.
+PairTexels shuffle_pair(PairTexels f, uint lane) {
+    return PairTexels(subgroupShuffle(f.ids, lane), subgroupShuffle(f.t0, lane),
+                      subgroupShuffle(f.t1, lane), subgroupShuffle(f.t2, lane));
+}
+
+uint pair_planes_of(PairTexels f, uvec2 texel, uint own, vec3 x, vec3 o, float inv_r, vec3 ox,
+                    float lo_x, mat3 turn_back, out PairPlanes p) {
+    p.ids = f.ids;
     uvec4 ids = p.ids;
     uvec2 rmin = uvec2(ids.z & 0xffffu, ids.z >> 16);
     uvec2 rmax = uvec2(ids.w & 0xffffu, ids.w >> 16);
     if (any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax)) || own == global_triangle(ids.x)) {
         return PAIR_CULLED; // outside the influence region, or the sample's own triangle
     }
-    uvec4 t0 = texelFetch(triangles_tb, int(3u * ids.x));
+    uvec4 t0 = f.t0;
     vec3 a = uintBitsToFloat(t0.xyz);
-    vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(3u * ids.x + 1u)).xyz);
-    uvec4 c_record = texelFetch(triangles_tb, int(3u * ids.x + 2u));
+    vec3 b = uintBitsToFloat(f.t1.xyz);
+    uvec4 c_record = f.t2;
     vec3 c = uintBitsToFloat(c_record.xyz);
     p.alpha_record = c_record.w;
     if (ROTATION != 0u) {
@@ -400,6 +421,11 @@ uint pair_planes(uint pi, uvec2 texel, uint own, vec3 x, vec3 o, float inv_r, ve
     return p.d1 > lo_x && p.d2 > lo_x && p.d3 > lo_x ? PAIR_PASSED : PAIR_EDGE_REJECTED;
 }
 
+uint pair_planes(uint pi, uvec2 texel, uint own, vec3 x, vec3 o, float inv_r, vec3 ox,
+                 float lo_x, mat3 turn_back, out PairPlanes p) {
+    return pair_planes_of(fetch_pair(pi), texel, own, x, o, inv_r, ox, lo_x, turn_back, p);
+}
+
 void main() {
     OcclusionUnit un = occlusion_unit();
     uint s = un.slot;
@@ -424,7 +450,7 @@ void main() {
         turn_back = unrotation(pixel_angle(texelFetch(list_sample_index_tb, int(s)).x));
         x = unrotate_point(x, turn_back);
     }
-    if (un.has_sample) {
+    {
         FOR_BLOCKS(INIT_BLOCK)
         vec3 ox = x - o;
         // Exact mode rejects a plane only beyond its rounding (1e-5 of
@@ -443,17 +469,36 @@ void main() {
         // pair_planes for each pair, then the look-ups (or exact tests) for
         // the pairs that passed. The second loop computes a pair's planes
         // again rather than keep a window of them per lane.
-        bool full = false;
-        for (uint w0 = begin; w0 < end && !full; w0 += PAIR_WINDOW) {
+        // Lanes without a sample take part in the first loop's fetches
+        // (below) and count nothing.
+        bool full = !un.has_sample;
+        for (uint w0 = begin; w0 < end; w0 += PAIR_WINDOW) {
+            // The subgroup leaves together: its lanes stay converged for
+            // the first loop's broadcasts.
+            if (subgroupBallotBitCount(subgroupBallot(!full)) == 0u) {
+                break;
+            }
             uint window = min(PAIR_WINDOW, end - w0);
             uint passed = 0u;
-            for (uint j = 0u; j < window; j++) {
-                PairPlanes p;
-                uint rule = pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
-                // Tests in the low half, plane rejections in the high half
-                // (at most MAX_KEPT of each per invocation): one add.
-                tests += rule == PAIR_CULLED ? 0u : (rule == PAIR_PLANE_REJECTED ? 0x10001u : 1u);
-                passed |= rule == PAIR_PASSED ? 1u << j : 0u;
+            // The first loop's pairs are the same for every lane: lane k of
+            // the subgroup fetches pair j0 + k of each `group`, and each
+            // lane takes them from it by a shuffle (on lavapipe a gather
+            // costs a load per lane: 8 pairs for 4 fetches, not 32).
+            uint group = min(gl_SubgroupSize, PAIR_WINDOW);
+            for (uint j0 = 0u; j0 < window; j0 += group) {
+                uint k = min(j0 + gl_SubgroupInvocationID % group, window - 1u);
+                PairTexels fetched = fetch_pair(kept_pairs[w0 + k]);
+                for (uint j = j0; j < min(j0 + group, window); j++) {
+                    PairPlanes p;
+                    uint rule = pair_planes_of(shuffle_pair(fetched, j - j0), texel, qb.w, x, o,
+                                               inv_r, ox, lo_x, turn_back, p);
+                    if (!full) {
+                        // Tests in the low half, plane rejections in the high
+                        // half (at most MAX_KEPT of each per invocation): one add.
+                        tests += rule == PAIR_CULLED ? 0u : (rule == PAIR_PLANE_REJECTED ? 0x10001u : 1u);
+                        passed |= rule == PAIR_PASSED ? 1u << j : 0u;
+                    }
+                }
             }
             past_sphere += uint(bitCount(passed));
             while (passed != 0u && !full) {
@@ -530,7 +575,9 @@ void main() {
                 }
             }
         }
-        FOR_BLOCKS(FLUSH_BLOCK)
+        if (un.has_sample) {
+            FOR_BLOCKS(FLUSH_BLOCK)
+        }
     }
 #if SURE
     uint sum_listed = subgroupAdd(listed);

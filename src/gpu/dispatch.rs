@@ -1,7 +1,9 @@
 //! What the compute passes of a light's run share: workgroup counts, the
-//! texel format of the hot gathers and a binding shorthand.
+//! texel format of the hot gathers, a binding shorthand and the subgroup
+//! operations the occlusion passes need.
 
-use crate::vulkan::{vk, Binding, BufferSlice};
+use crate::vulkan::{vk, Binding, BufferSlice, GpuContext};
+use crate::{Error, Result};
 
 /// Workgroup size of the 1D passes (`WORKGROUP_1D` in `shadow_common.glsl`).
 pub const WG: u32 = 64;
@@ -31,4 +33,22 @@ pub fn groups_2d(g: u32) -> [u32; 3] {
 /// A storage-buffer binding.
 pub fn storage<'a>(b: impl Into<BufferSlice<'a>>) -> Binding<'a> {
     Binding::storage(b)
+}
+
+/// The subgroup operations of the occlusion passes: ballot, and shuffle
+/// (each lane fetches one pair of a window and the others take it from
+/// that lane, since every lane tests the same pairs).
+pub fn require_occlusion_subgroup_ops(ctx: &GpuContext, pass: &str) -> Result<()> {
+    let ops = vk::SubgroupFeatureFlags::BASIC
+        | vk::SubgroupFeatureFlags::BALLOT
+        | vk::SubgroupFeatureFlags::SHUFFLE;
+    let info = ctx.info();
+    if info.supports_subgroup(ops) {
+        Ok(())
+    } else {
+        Err(Error::Vulkan(format!(
+            "{pass} needs subgroup ballot and shuffle in compute shaders, which \"{}\" lacks",
+            info.name
+        )))
+    }
 }

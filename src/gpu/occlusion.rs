@@ -4,7 +4,7 @@
 //! one workgroup per work unit (`tile_bin_units.comp`). CPU twin:
 //! [`crate::cpu::occlusion`].
 
-use crate::gpu::dispatch::{groups_2d, storage, RGBA32UI};
+use crate::gpu::dispatch::{groups_2d, require_occlusion_subgroup_ops, storage, RGBA32UI};
 use crate::gpu::light_frame::{CasterRound, Recording, UNITS_INDIRECT};
 use crate::gpu::shaders;
 use crate::gpu::shared::LightPush;
@@ -27,6 +27,7 @@ pub struct OcclusionPass {
 impl OcclusionPass {
     /// Builds the pipeline.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
+        require_occlusion_subgroup_ops(ctx, "occlusion")?;
         let sb = DescriptorKind::StorageBuffer;
         let tb = DescriptorKind::UniformTexelBuffer;
         let make = |alpha: bool| {

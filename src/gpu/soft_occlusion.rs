@@ -11,7 +11,7 @@
 //! [`crate::cpu::soft_occlusion`].
 
 use crate::gpu::clusters::ClusterPass;
-use crate::gpu::dispatch::{groups, groups_2d, storage, RGBA32UI};
+use crate::gpu::dispatch::{groups, groups_2d, require_occlusion_subgroup_ops, storage, RGBA32UI};
 use crate::gpu::light_frame::LightFrame;
 use crate::gpu::light_frame::{CasterRound, Recording, UNITS_INDIRECT};
 use crate::gpu::shaders;
@@ -159,6 +159,7 @@ impl Kernel {
 impl SoftOcclusionPass {
     /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
+        require_occlusion_subgroup_ops(ctx, "soft occlusion")?;
         let plain = (1..=8)
             .flat_map(|b| [Kernel::Sure(b), Kernel::Approx(b)])
             .chain([Kernel::Exact, Kernel::Unsure]);
