@@ -275,6 +275,26 @@ pub fn shade_coloured(
     let surfaces = Surfaces::new(scene);
     let mut img = image::RgbImage::new(w, h);
     let row_bytes = 3 * w as usize;
+    // Per light, the corner bends of every triangle the picture shows
+    // (`slot` numbers them), once per frame rather than per pixel.
+    let mut slot = vec![u32::MAX; normals.triangle_count()];
+    let mut shown = Vec::new();
+    for s in view.samples.iter().flatten() {
+        let t = s.triangle as usize;
+        if t < slot.len() && slot[t] == u32::MAX {
+            slot[t] = shown.len() as u32;
+            shown.push(t);
+        }
+    }
+    let bends: Vec<Vec<[[f64; 2]; 3]>> = lights
+        .iter()
+        .map(|light| {
+            shown
+                .par_iter()
+                .map(|&t| normals.corner_bends(t, |p| to_light(light, p)))
+                .collect()
+        })
+        .collect();
     img.par_chunks_mut(row_bytes.max(1))
         .enumerate()
         .for_each(|(y, row)| {
@@ -311,7 +331,8 @@ pub fn shade_coloured(
                                 continue;
                             }
                             let lambert = if on_mesh {
-                                normals.lambert(t, bary, s.normal, |p| to_light(light, p))
+                                let b = &bends[k][slot[t] as usize];
+                                normals.lambert_bent(t, bary, s.normal, b, |p| to_light(light, p))
                             } else {
                                 s.normal.dot(to_light(light, s.position)).max(0.0)
                             };

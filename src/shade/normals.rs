@@ -207,25 +207,53 @@ impl ShadingNormals {
         view_normal: DVec3,
         to_light: impl Fn(DVec3) -> DVec3,
     ) -> f64 {
+        let bends = self.corner_bends(t, &to_light);
+        self.lambert_bent(t, bary, view_normal, &bends, to_light)
+    }
+
+    /// Per corner of triangle `t`, the least and the greatest `dot(l, n_F)`
+    /// over the faces `F` of its smoothing group, `l = to_light(corner)`:
+    /// its `l_bend` is the least seen from the front and minus the greatest
+    /// from the back. They depend on the triangle and the light only, so a
+    /// frame computes them once per visible triangle, not per pixel.
+    pub fn corner_bends(&self, t: usize, to_light: impl Fn(DVec3) -> DVec3) -> [[f64; 2]; 3] {
+        std::array::from_fn(|i| {
+            let c = 3 * t + i;
+            let l = to_light(self.position[c]);
+            self.group(c)
+                .map(|g| l.dot(self.face[g]))
+                .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], d| {
+                    [lo.min(d), hi.max(d)]
+                })
+        })
+    }
+
+    /// [`ShadingNormals::lambert`] with the triangle's
+    /// [`ShadingNormals::corner_bends`] given.
+    pub fn lambert_bent(
+        &self,
+        t: usize,
+        bary: DVec3,
+        view_normal: DVec3,
+        bends: &[[f64; 2]; 3],
+        to_light: impl Fn(DVec3) -> DVec3,
+    ) -> f64 {
         let face = self.face[t];
         if face == DVec3::ZERO {
             let p: DVec3 = (0..3).map(|i| bary[i] * self.position[3 * t + i]).sum();
             return view_normal.dot(to_light(p)).max(0.0);
         }
-        // Seen from the back (a double-sided surface): every normal flips.
+        // Seen from the back (a double-sided surface): every normal flips,
+        // and the least of the flipped dots is minus the greatest.
         let side = if view_normal.dot(face) < 0.0 {
             -1.0
         } else {
             1.0
         };
         let (mut lb, mut n, mut p) = (0.0, DVec3::ZERO, DVec3::ZERO);
-        for i in 0..3 {
+        for (i, [least, greatest]) in bends.iter().enumerate() {
             let c = 3 * t + i;
-            let l = to_light(self.position[c]);
-            let bend = self
-                .group(c)
-                .map(|g| side * l.dot(self.face[g]))
-                .fold(f64::INFINITY, f64::min);
+            let bend = if side > 0.0 { *least } else { -greatest };
             lb += bary[i] * bend;
             n += bary[i] * side * self.normal[c];
             p += bary[i] * self.position[c];
