@@ -15,6 +15,10 @@ use crate::vulkan::{
 };
 use crate::Result;
 
+/// View samples per invocation of the fit (`FIT_PER_LANE`,
+/// `light_view_fit.comp`).
+const FIT_PER_LANE: u32 = 16;
+
 /// The fit's pipelines and what they write.
 pub struct LightViewPass {
     fit: ComputePipeline,
@@ -70,7 +74,12 @@ impl LightViewPass {
         let (samples, n) = (r.inputs.samples, r.frame.n);
         r.pass("light_fit", |rec, pc| {
             let keys = storage(&self.fit_keys);
-            rec.dispatch(&self.fit, &[storage(samples), keys], pc, groups(n))?;
+            rec.dispatch(
+                &self.fit,
+                &[storage(samples), keys],
+                pc,
+                groups(n.div_ceil(FIT_PER_LANE)),
+            )?;
             rec.barrier(Barrier::ComputeToCompute);
             rec.dispatch(&self.finalize, &[keys, storage(&self.faces)], pc, [1, 1, 1])?;
             rec.barrier(Barrier::ComputeToCompute);
