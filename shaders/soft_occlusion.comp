@@ -337,10 +337,6 @@ struct PairPlanes {
     uint alpha_record;
 };
 
-// The caster of pair `pi` against sample x (in texel `texel`, on global
-// triangle `own`): its supporting plane facing x (ns, d0) and the planes
-// through x and each edge (u0..u2, d1..d3), in light radii from the
-// light's centre o; x and the caster are turned back by `turn_back`.
 // A pair's texels: its CasterFace's first (ids) and its triangle's three.
 struct PairTexels {
     uvec4 ids, t0, t1, t2;
@@ -361,6 +357,11 @@ PairTexels shuffle_pair(PairTexels f, uint lane) {
                       subgroupShuffle(f.t1, lane), subgroupShuffle(f.t2, lane));
 }
 
+// The caster of a pair (its texels `f`; pair_planes: of pair `pi`)
+// against sample x (in texel `texel`, on global triangle `own`): its
+// supporting plane facing x (ns, d0) and the planes
+// through x and each edge (u0..u2, d1..d3), in light radii from the
+// light's centre o; x and the caster are turned back by `turn_back`.
 uint pair_planes_of(PairTexels f, uvec2 texel, uint own, vec3 x, vec3 o, float inv_r, vec3 ox,
                     float lo_x, mat3 turn_back, out PairPlanes p) {
     p.ids = f.ids;
@@ -474,7 +475,7 @@ void main() {
         bool full = !un.has_sample;
         for (uint w0 = begin; w0 < end; w0 += PAIR_WINDOW) {
             // The subgroup leaves together: its lanes stay converged for
-            // the first loop's broadcasts.
+            // the first loop's shuffles.
             if (subgroupBallotBitCount(subgroupBallot(!full)) == 0u) {
                 break;
             }
