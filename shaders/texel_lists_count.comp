@@ -11,7 +11,8 @@ layout(set = 0, binding = 1) uniform Faces { LightFace faces[6]; }; // read alik
 layout(set = 0, binding = 2) buffer Counts { uint counts[]; };
 layout(set = 0, binding = 3) writeonly buffer SampleTexel { uint sample_texel[]; };
 layout(set = 0, binding = 4) writeonly buffer SampleLocal { uint sample_local[]; };
-layout(set = 0, binding = 5) buffer TileMaxLen { uint tile_max_len[]; }; // longest list per tile
+// Per tile its longest list, then the tiles' occupancy bits (occupancy_word).
+layout(set = 0, binding = 5) buffer TileMaxLen { uint tile_max_len[]; };
 
 void main() {
     uint i = linear_invocation();
@@ -32,6 +33,9 @@ void main() {
         local = atomicAdd(counts[texel], 1u);
         uvec2 tt = t / TILE;
         atomicMax(tile_max_len[f * pc.more.z + tt.y * pc.more.y + tt.x], local + 1u);
+        if (local == 0u) {
+            atomicOr(tile_max_len[occupancy_word(f, tt.y, tt.x / 32u)], 1u << (tt.x % 32u));
+        }
     }
     sample_texel[i] = texel;
     sample_local[i] = local;

@@ -20,7 +20,7 @@ layout(set = 0, binding = 3) readonly buffer TileOffsets { uint tile_offsets[]; 
 layout(set = 0, binding = 4) writeonly buffer TilePairs { uint tile_pairs[]; };
 // Per tile, read once per covered tile of every pair: texel buffers (on
 // lavapipe ~10x faster gathers than storage buffers).
-layout(set = 0, binding = 5) uniform usamplerBuffer tile_max_len_tb; // 0: the tile has no view samples
+layout(set = 0, binding = 5) uniform usamplerBuffer tile_max_len_tb; // then the tiles' occupancy bits (occupancy_word)
 layout(set = 0, binding = 6) uniform usamplerBuffer boxes_tb; // per tile: lo (w: valid), hi (clusters_bounds), float bits
 layout(set = 0, binding = 7) uniform usamplerBuffer triangles_tb; // GpuTriangle: 3 texels
 
@@ -43,36 +43,42 @@ void main() {
         plane = triangle_cluster_plane(triangles_tb, cf.ids.x);
     }
     uint light_side = 0u, behind_closed = 0u;
+    uint face = cf.ids.y;
     for (uint ty = t0.y; ty <= t1.y; ty++) {
-        for (uint tx = t0.x; tx <= t1.x; tx++) {
-            // The part of the tile inside the rectangle.
-            vec2 lo = vec2(max(uvec2(tx, ty) * TILE, rmin));
-            vec2 hi = vec2(min(uvec2(tx, ty) * TILE + TILE - 1u, rmax) + 1u);
-            if (edges && !square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, vec2(cf.e0.w, cf.e1.w), lo, hi)) {
-                continue;
-            }
-            uint tile = base + ty * pc.more.y + tx;
-            if (texelFetch(tile_max_len_tb, int(tile)).x == 0u) {
-                continue; // no view sample in this tile: nothing to shadow
-            }
-            vec4 box_lo = CLUSTERS != 0u ? uintBitsToFloat(texelFetch(boxes_tb, int(2u * tile))) : vec4(0.0);
-            if (CLUSTERS != 0u && box_lo.w != 0.0) {
-                vec3 box_hi = uintBitsToFloat(texelFetch(boxes_tb, int(2u * tile + 1u)).xyz);
-                uint rule = cull_rule(plane, box_lo.xyz, box_hi);
-                light_side += rule == CLUSTER_LIGHT_SIDE ? 1u : 0u;
-                behind_closed += rule == CLUSTER_BEHIND_CLOSED ? 1u : 0u;
-                if (rule != CLUSTER_KEEP) {
+        for (uint w = t0.x / 32u; w <= t1.x / 32u; w++) {
+            // This word's occupied tiles inside the rectangle's columns.
+            uint first = max(t0.x, w * 32u) - w * 32u, last = min(t1.x, w * 32u + 31u) - w * 32u;
+            uint columns = (last == 31u ? 0xffffffffu : (1u << (last + 1u)) - 1u) & ~((1u << first) - 1u);
+            uint occupied = texelFetch(tile_max_len_tb, int(occupancy_word(face, ty, w))).x & columns;
+            while (occupied != 0u) {
+                uint tx = w * 32u + uint(findLSB(occupied));
+                occupied &= occupied - 1u;
+                // The part of the tile inside the rectangle.
+                vec2 lo = vec2(max(uvec2(tx, ty) * TILE, rmin));
+                vec2 hi = vec2(min(uvec2(tx, ty) * TILE + TILE - 1u, rmax) + 1u);
+                if (edges && !square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, vec2(cf.e0.w, cf.e1.w), lo, hi)) {
                     continue;
                 }
-            }
-            if (SCATTER == 0u) {
-                atomicAdd(tile_counts[tile], 1u);
-            } else {
-                uint slot = tile_offsets[tile] + atomicAdd(tile_counts[tile], 1u);
-                // A caller's recording binds a list of fixed capacity: past
-                // it, record_args.comp reports the overflow and runs no unit.
-                if (slot < uint(tile_pairs.length())) {
-                    tile_pairs[slot] = i;
+                uint tile = base + ty * pc.more.y + tx;
+                vec4 box_lo = CLUSTERS != 0u ? uintBitsToFloat(texelFetch(boxes_tb, int(2u * tile))) : vec4(0.0);
+                if (CLUSTERS != 0u && box_lo.w != 0.0) {
+                    vec3 box_hi = uintBitsToFloat(texelFetch(boxes_tb, int(2u * tile + 1u)).xyz);
+                    uint rule = cull_rule(plane, box_lo.xyz, box_hi);
+                    light_side += rule == CLUSTER_LIGHT_SIDE ? 1u : 0u;
+                    behind_closed += rule == CLUSTER_BEHIND_CLOSED ? 1u : 0u;
+                    if (rule != CLUSTER_KEEP) {
+                        continue;
+                    }
+                }
+                if (SCATTER == 0u) {
+                    atomicAdd(tile_counts[tile], 1u);
+                } else {
+                    uint slot = tile_offsets[tile] + atomicAdd(tile_counts[tile], 1u);
+                    // A caller's recording binds a list of fixed capacity: past
+                    // it, record_args.comp reports the overflow and runs no unit.
+                    if (slot < uint(tile_pairs.length())) {
+                        tile_pairs[slot] = i;
+                    }
                 }
             }
         }

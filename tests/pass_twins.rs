@@ -10,7 +10,7 @@
 use alias_free_shadows::cpu::clusters::{tile_boxes, ClusterLight};
 use alias_free_shadows::cpu::light_view::{fit_windows, LightView};
 use alias_free_shadows::cpu::resolve::{resolve_hard, resolve_soft};
-use alias_free_shadows::cpu::texel_lists::{build_texel_lists, NOT_LISTED};
+use alias_free_shadows::cpu::texel_lists::{build_texel_lists, tile_occupancy, NOT_LISTED};
 use alias_free_shadows::cpu::tile_bin::{bin_pairs, caster_face_from_gpu, BinClusters, TILE};
 use alias_free_shadows::gpu::shared::{
     counter, GpuCasterFace, GpuLightFace, GpuViewSample, TRIANGLE_CLOSED,
@@ -111,6 +111,19 @@ fn check_hard_passes(
             }
         }
     }
+    // The tiles' occupancy bits, after the per-tile longest lengths.
+    let tiles = faces * (tpr * tpr) as usize;
+    let occupancy = tile_occupancy(&lists.counts, res, faces as u32);
+    let words: Vec<u32> = read(
+        ctx,
+        &passes.texel_lists.tile_max_len,
+        tiles + occupancy.len(),
+    );
+    assert_eq!(&words[tiles..], &occupancy[..], "tile occupancy");
+    assert!(
+        occupancy.iter().any(|&w| w != 0),
+        "the case must occupy tiles"
+    );
     let n = inp.samples.len();
     let sample_texel: Vec<u32> = read(ctx, &passes.texel_lists.sample_texel, n);
     for (i, (&g, &c)) in sample_texel.iter().zip(&lists.sample_texel).enumerate() {

@@ -8,6 +8,7 @@
 use glam::Vec3;
 
 use super::light_view::{texel_of, FaceWindow, LightView};
+use super::tile_bin::TILE;
 
 /// Sentinel texel of a sample that is not in any list.
 pub const NOT_LISTED: u32 = u32::MAX;
@@ -66,4 +67,22 @@ pub fn build_texel_lists(
         offsets,
         list,
     }
+}
+
+/// Which tiles of [`TILE`]² texels hold a listed sample, as the GPU's count
+/// pass marks them after the per-tile longest list lengths
+/// (`occupancy_word` in `shadow_common.glsl`): per face and row of tiles,
+/// `tiles_per_row / 32` words (rounded up), bit `tx % 32` of word `tx / 32`
+/// set for an occupied tile. `counts` are [`TexelLists::counts`].
+pub fn tile_occupancy(counts: &[u32], resolution: u32, faces: u32) -> Vec<u32> {
+    let tiles_per_row = resolution.div_ceil(TILE);
+    let words_per_row = tiles_per_row.div_ceil(32);
+    let mut words = vec![0u32; (faces * tiles_per_row * words_per_row) as usize];
+    let r2 = resolution as usize * resolution as usize;
+    for (t, _) in counts.iter().enumerate().filter(|&(_, &c)| c != 0) {
+        let (f, rest) = ((t / r2) as u32, (t % r2) as u32);
+        let (tx, ty) = ((rest % resolution) / TILE, (rest / resolution) / TILE);
+        words[((f * tiles_per_row + ty) * words_per_row + tx / 32) as usize] |= 1 << (tx % 32);
+    }
+    words
 }

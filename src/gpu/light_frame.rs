@@ -71,6 +71,14 @@ pub struct LightFrame {
 }
 
 impl LightFrame {
+    /// Words of the per-tile longest list lengths and, after them, the
+    /// tiles' occupancy bits (`occupancy_word` in `shadow_common.glsl`: per
+    /// face and row of tiles, `tiles_per_row / 32` words, rounded up).
+    pub fn tile_words(&self) -> u64 {
+        self.tiles as u64
+            + (self.faces * self.tiles_per_row * self.tiles_per_row.div_ceil(32)) as u64
+    }
+
     /// The frame of `inputs` lit by `light` over `resolution`² texels per
     /// face, with `soft`'s samples for a light with extent.
     pub fn new(

@@ -36,7 +36,8 @@ pub struct TexelListPass {
     /// Per list slot: the sample's index among the view samples (its
     /// pixel: the per-pixel rotation's angle).
     pub list_sample_index: GrowBuffer,
-    /// Per tile: its longest list (occlusion work units).
+    /// Per tile: its longest list (occlusion work units); then which tiles
+    /// hold view samples, one bit each (binning visits only those).
     pub tile_max_len: GrowBuffer,
 }
 
@@ -111,7 +112,7 @@ impl TexelListPass {
         self.sample_slot.get(ctx, 4 * n)?;
         self.list_samples.get(ctx, 16 * n)?;
         self.list_sample_index.get(ctx, 4 * n)?;
-        self.tile_max_len.get(ctx, 4 * frame.tiles as u64)?;
+        self.tile_max_len.get(ctx, 4 * frame.tile_words())?;
         Ok(())
     }
 
