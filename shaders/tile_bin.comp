@@ -18,9 +18,10 @@ layout(set = 0, binding = 1) buffer Counters { uint counters[]; };
 layout(set = 0, binding = 2) buffer TileCounts { uint tile_counts[]; }; // counts, or cursors when scattering
 layout(set = 0, binding = 3) readonly buffer TileOffsets { uint tile_offsets[]; };
 layout(set = 0, binding = 4) writeonly buffer TilePairs { uint tile_pairs[]; };
-// Per tile, read once per covered tile of every pair: texel buffers (on
-// lavapipe ~10x faster gathers than storage buffers).
-layout(set = 0, binding = 5) uniform usamplerBuffer tile_max_len_tb; // then the tiles' occupancy bits (occupancy_word)
+// Texel buffers (on lavapipe ~10x faster gathers than storage buffers).
+// The texel count pass's per-tile buffer: longest lists, then the tiles'
+// occupancy bits (occupancy_word), which binning reads once per row word.
+layout(set = 0, binding = 5) uniform usamplerBuffer tile_occupancy_tb;
 layout(set = 0, binding = 6) uniform usamplerBuffer boxes_tb; // per tile: lo (w: valid), hi (clusters_bounds), float bits
 layout(set = 0, binding = 7) uniform usamplerBuffer triangles_tb; // GpuTriangle: 3 texels
 
@@ -34,7 +35,8 @@ void main() {
     uvec2 rmax = uvec2(cf.ids.w & 0xffffu, cf.ids.w >> 16);
     uvec2 t0 = rmin / TILE, t1 = rmax / TILE;
     bool edges = cf.e0.w != 0.0;
-    uint base = cf.ids.y * pc.more.z;
+    uint face = cf.ids.y;
+    uint base = face * pc.more.z;
     // Boxes exist for soft shadows only (gpu::clusters): hard shadows skip
     // the plane, and every tile's box is invalid.
     ClusterPlane plane;
@@ -43,13 +45,12 @@ void main() {
         plane = triangle_cluster_plane(triangles_tb, cf.ids.x);
     }
     uint light_side = 0u, behind_closed = 0u;
-    uint face = cf.ids.y;
     for (uint ty = t0.y; ty <= t1.y; ty++) {
         for (uint w = t0.x / 32u; w <= t1.x / 32u; w++) {
             // This word's occupied tiles inside the rectangle's columns.
             uint first = max(t0.x, w * 32u) - w * 32u, last = min(t1.x, w * 32u + 31u) - w * 32u;
             uint columns = (last == 31u ? 0xffffffffu : (1u << (last + 1u)) - 1u) & ~((1u << first) - 1u);
-            uint occupied = texelFetch(tile_max_len_tb, int(occupancy_word(face, ty, w))).x & columns;
+            uint occupied = texelFetch(tile_occupancy_tb, int(occupancy_word(face, ty, w))).x & columns;
             while (occupied != 0u) {
                 uint tx = w * 32u + uint(findLSB(occupied));
                 occupied &= occupied - 1u;
