@@ -8,29 +8,34 @@
 use crate::vulkan::{CommandRecorder, GpuContext, PassTiming, Profiler};
 use crate::Result;
 
-/// Most timed passes per run: the LUT build, a dozen passes and one
-/// occlusion pass per 128-sample block in exact mode.
-const CAPACITY: u32 = 128;
+/// Timed passes per query pool (a run with more makes another pool): the
+/// LUT build, a dozen passes and one occlusion pass per 128-sample block in
+/// exact mode, or per list segment in look-up mode.
+const POOL_PASSES: u32 = 128;
 
 /// Times the passes of one run; made once, restarted per run.
 pub struct PassClock {
     profiler: Profiler,
     /// Wall-clock mode: the passes timed so far.
     walls: Option<Vec<PassTiming>>,
+    /// Timestamp mode: the passes done on the host, timed there.
+    host: Vec<PassTiming>,
 }
 
 impl PassClock {
     /// A clock with its timestamp pool (made once).
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         Ok(PassClock {
-            profiler: Profiler::new(ctx, CAPACITY)?,
+            profiler: Profiler::new(ctx, POOL_PASSES)?,
             walls: None,
+            host: Vec::new(),
         })
     }
 
     /// Forgets the last run's passes.
     pub fn restart(&mut self, ctx: &GpuContext) {
         self.profiler.clear();
+        self.host.clear();
         self.walls = walls_wanted(ctx).then(Vec::new);
     }
 
@@ -65,12 +70,30 @@ impl PassClock {
         }
     }
 
+    /// Times `f`, work done on the host (reading or building a table), as
+    /// pass `name` with the wall clock in either mode: it records no GPU
+    /// commands, so timestamps would bracket nothing.
+    pub fn time_host<T>(&mut self, name: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
+        let t = std::time::Instant::now();
+        let out = f()?;
+        let timing = PassTiming {
+            name: name.to_string(),
+            ms: Some(t.elapsed().as_secs_f64() * 1e3),
+        };
+        self.walls.as_mut().unwrap_or(&mut self.host).push(timing);
+        Ok(out)
+    }
+
     /// The passes of this run so far, in order (after their submissions
     /// were waited for).
     pub fn results(&self) -> Result<Vec<PassTiming>> {
         match &self.walls {
             Some(w) => Ok(w.clone()),
-            None => self.profiler.results(),
+            None => {
+                let mut all = self.host.clone();
+                all.extend(self.profiler.results()?);
+                Ok(all)
+            }
         }
     }
 }

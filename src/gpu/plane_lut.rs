@@ -185,9 +185,8 @@ impl PlaneLutPass {
             } else {
                 "lut_build"
             };
-            let mut built = false;
-            clock.time(ctx, &mut ctx.begin()?, name, |_| {
-                built = ctx.upload_with(&buffer, |lut: &mut [[u32; 4]]| {
+            let built = clock.time_host(name, || {
+                ctx.upload_with(&buffer, |lut: &mut [[u32; 4]]| {
                     if let Some(file) = cached {
                         if file.read_into(bytemuck::cast_slice_mut(lut)) {
                             return Ok(false);
@@ -195,8 +194,7 @@ impl PlaneLutPass {
                     }
                     build_bounds_lut_into(&ys, light.lut_resolution, lut);
                     Ok(true)
-                })?;
-                Ok(())
+                })
             })?;
             if let (true, Some(p)) = (built, cache) {
                 self.start_writing(ctx, &buffer, p, key.clone())?;
@@ -258,10 +256,9 @@ impl PlaneLutPass {
         {
             return Ok(None);
         }
-        let mut buffer = None;
-        clock.time(ctx, &mut ctx.begin()?, "lut_mapped", |_| {
+        clock.time_host("lut_mapped", || {
             let Some(mapped) = file.map() else {
-                return Ok(());
+                return Ok(None);
             };
             let (ptr, len) = (mapped.ptr(), mapped.len() as u64);
             // SAFETY: the extension is enabled (features), the mapping is
@@ -272,12 +269,13 @@ impl PlaneLutPass {
             match unsafe {
                 Buffer::from_host_memory(ctx.device(), desc, ptr, len, Box::new(mapped))
             } {
-                Ok(b) => buffer = Some(b),
-                Err(e) => log::warn!("the cached look-up table cannot be mapped ({e}); reading it"),
+                Ok(b) => Ok(Some(b)),
+                Err(e) => {
+                    log::warn!("the cached look-up table cannot be mapped ({e}); reading it");
+                    Ok(None)
+                }
             }
-            Ok(())
-        })?;
-        Ok(buffer)
+        })
     }
 
     /// Maps tables read from the cache into device memory where the device

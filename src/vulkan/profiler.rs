@@ -25,77 +25,102 @@ pub struct PassTiming {
 #[must_use = "end the pass with Profiler::end"]
 pub struct PassScope(usize);
 
-/// A timestamp query pool for up to `capacity` passes.
+/// Timestamp query pools, `chunk` passes each, made as a round needs them.
 ///
 /// Usage: `begin`/`end` around passes while recording (possibly in several
 /// recorders submitted in order), `submit_and_wait`, then [`Profiler::results`].
-/// [`Profiler::clear`] starts over.
+/// [`Profiler::clear`] starts over. Each pool's reset is recorded before its
+/// first timestamp of a round, in the recorder that writes it, so every
+/// recorder that `begin` or `end` was given must be submitted.
 pub struct Profiler {
-    pool: vk::QueryPool,
-    capacity: u32,
+    pools: Vec<vk::QueryPool>,
+    chunk: u32,
     passes: Vec<(String, Option<u32>)>,
-    reset_recorded: bool,
+    /// Pools whose reset is recorded this round (the first ones).
+    pools_reset: usize,
     valid_mask: u64,
     period_ns: f64,
+    supported: bool,
     device: Arc<Device>,
 }
 
+/// Most passes of one round: a bound on the pools a runaway loop could make.
+const MAX_PASSES: usize = 1 << 16;
+
 impl Profiler {
-    /// A profiler for at most `capacity` passes per round.
-    pub fn new(ctx: &GpuContext, capacity: u32) -> Result<Self> {
+    /// A profiler that times passes in pools of `chunk` passes (made when a
+    /// round first needs them; a round may hold any number of passes).
+    pub fn new(ctx: &GpuContext, chunk: u32) -> Result<Self> {
         let device = ctx.device();
         let info = device.info();
         let bits = info.timestamp_valid_bits;
         let mut profiler = Profiler {
-            pool: vk::QueryPool::null(),
-            capacity,
+            pools: Vec::new(),
+            chunk: chunk.max(1),
             passes: Vec::new(),
-            reset_recorded: false,
+            pools_reset: 0,
             valid_mask: if bits >= 64 {
                 u64::MAX
             } else {
                 (1u64 << bits) - 1
             },
             period_ns: info.timestamp_period_ns as f64,
+            supported: bits > 0 && chunk > 0,
             device: Arc::clone(device),
         };
-        if bits > 0 && capacity > 0 {
-            let pool_info = vk::QueryPoolCreateInfo::default()
-                .query_type(vk::QueryType::TIMESTAMP)
-                .query_count(2 * capacity);
-            profiler.pool = unsafe { device.raw().create_query_pool(&pool_info, None) }?;
+        if profiler.supported {
+            profiler.add_pool()?;
         }
         Ok(profiler)
     }
 
+    fn add_pool(&mut self) -> Result<()> {
+        let pool_info = vk::QueryPoolCreateInfo::default()
+            .query_type(vk::QueryType::TIMESTAMP)
+            .query_count(2 * self.chunk);
+        let pool = unsafe { self.device.raw().create_query_pool(&pool_info, None) }?;
+        self.pools.push(pool);
+        Ok(())
+    }
+
+    /// The pool and first query of pass `index`.
+    fn slot(&self, index: usize) -> (vk::QueryPool, u32) {
+        let chunk = self.chunk as usize;
+        (self.pools[index / chunk], 2 * (index % chunk) as u32)
+    }
+
     /// Whether timestamps are really measured.
     pub fn supported(&self) -> bool {
-        self.pool != vk::QueryPool::null()
+        self.supported
     }
 
     /// Marks the start of pass `name` (after all earlier commands finished).
     pub fn begin(&mut self, rec: &mut CommandRecorder, name: &str) -> Result<PassScope> {
-        if self.passes.len() as u32 >= self.capacity {
+        if self.passes.len() >= MAX_PASSES {
             return Err(Error::InvalidInput(format!(
-                "profiler holds at most {} passes; \"{name}\" is one too many",
-                self.capacity
+                "profiler holds at most {MAX_PASSES} passes per round; \"{name}\" is one too many"
             )));
         }
         let index = self.passes.len();
         if self.supported() {
-            let d = self.device.raw();
-            if !self.reset_recorded {
-                unsafe { d.cmd_reset_query_pool(rec.raw(), self.pool, 0, 2 * self.capacity) };
-                self.reset_recorded = true;
+            let pool = index / self.chunk as usize;
+            if pool >= self.pools.len() {
+                self.add_pool()?;
             }
+            let d = self.device.raw();
+            if pool >= self.pools_reset {
+                unsafe { d.cmd_reset_query_pool(rec.raw(), self.pools[pool], 0, 2 * self.chunk) };
+                self.pools_reset = pool + 1;
+            }
+            let (pool, query) = self.slot(index);
             // BOTTOM_OF_PIPE: written once every earlier command completed, so
             // the pass's time does not include work queued before it.
             unsafe {
                 d.cmd_write_timestamp(
                     rec.raw(),
                     vk::PipelineStageFlags::BOTTOM_OF_PIPE,
-                    self.pool,
-                    2 * index as u32,
+                    pool,
+                    query,
                 )
             };
         }
@@ -107,12 +132,13 @@ impl Profiler {
     pub fn end(&mut self, rec: &mut CommandRecorder, scope: PassScope) {
         let index = scope.0;
         if self.supported() {
+            let (pool, query) = self.slot(index);
             unsafe {
                 self.device.raw().cmd_write_timestamp(
                     rec.raw(),
                     vk::PipelineStageFlags::BOTTOM_OF_PIPE,
-                    self.pool,
-                    2 * index as u32 + 1,
+                    pool,
+                    query + 1,
                 )
             };
         }
@@ -139,10 +165,11 @@ impl Profiler {
                 continue;
             }
             let mut ticks = [0u64; 2];
+            let (pool, query) = self.slot(i);
             unsafe {
                 self.device.raw().get_query_pool_results(
-                    self.pool,
-                    2 * i as u32,
+                    pool,
+                    query,
                     &mut ticks,
                     // No WAIT: results asked for before the submission ran
                     // are an error, not a hang.
@@ -178,12 +205,14 @@ impl Profiler {
     /// Forgets all passes; the next `begin` resets the queries again.
     pub fn clear(&mut self) {
         self.passes.clear();
-        self.reset_recorded = false;
+        self.pools_reset = 0;
     }
 }
 
 impl Drop for Profiler {
     fn drop(&mut self) {
-        unsafe { self.device.raw().destroy_query_pool(self.pool, None) };
+        for &pool in &self.pools {
+            unsafe { self.device.raw().destroy_query_pool(pool, None) };
+        }
     }
 }
