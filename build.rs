@@ -9,8 +9,9 @@
 //! constants (`VARIANTS`).
 //!
 //! With the `compile-shaders` feature (developers and CI) it compiles every
-//! shader with `shaderc` (GLSL 450, Vulkan 1.2, SPIR-V 1.5) and rewrites the
-//! files in `shaders/spirv/` that differ, with `shaders/spirv/SOURCES`, the
+//! shader with `shaderc` (GLSL 450, Vulkan 1.2, SPIR-V 1.5), marks its float
+//! arithmetic `NoContraction` (`no_contraction`: no fused multiply-adds on any
+//! driver), and rewrites the files in `shaders/spirv/` that differ, with `shaders/spirv/SOURCES`, the
 //! hash of every source the SPIR-V came from. A compile error fails the build
 //! with shaderc's message, which names the shader (or header) and line.
 //!
@@ -356,6 +357,7 @@ fn compile_all(shader_dir: &Path, spirv_dir: &Path, builds: &[Build], sources: &
         };
         match compile(&compiler, shader_dir, &build.source, kind, &build.defines) {
             Ok(words) => {
+                let words = no_contraction(&words);
                 let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
                 write_if_changed(&spirv_dir.join(&build.spv_name), bytes.as_slice());
             }
@@ -445,6 +447,54 @@ fn compile(
             other => format!("{name}: {other}"),
         })?;
     Ok(artifact.as_binary().to_vec())
+}
+
+/// Decorates every float arithmetic result with `NoContraction`, as if every
+/// GLSL expression were `precise`: a driver may not fuse a multiply and an
+/// add into one rounding (NVIDIA's does, lavapipe's does not), so that add,
+/// subtract and multiply round as IEEE says on every device and the GPU's
+/// bits equal the CPU twins' (measured on an H200: one-ulp windows, masks
+/// of look-up mode one word off exact mode, before this).
+#[cfg(feature = "compile-shaders")]
+fn no_contraction(words: &[u32]) -> Vec<u32> {
+    const OP_DECORATE: u32 = 71;
+    const NO_CONTRACTION: u32 = 42;
+    // OpFNegate, OpFAdd, OpFSub, OpFMul, OpFDiv, OpFRem, OpFMod,
+    // OpVectorTimesScalar .. OpOuterProduct, OpDot.
+    const ARITHMETIC: &[u32] = &[
+        127, 129, 131, 133, 136, 140, 141, 142, 143, 144, 145, 146, 147, 148,
+    ];
+    // OpDecorate .. OpGroupMemberDecorate, OpDecorateId, OpDecorateString,
+    // OpMemberDecorateString: the annotation section.
+    const ANNOTATION: &[u32] = &[71, 72, 73, 74, 75, 332, 5632, 5633];
+    let mut decorated = std::collections::HashSet::new();
+    let mut targets = Vec::new();
+    let mut after_annotations = None;
+    let mut at = 5; // after the header
+    while at < words.len() {
+        let count = (words[at] >> 16) as usize;
+        let op = words[at] & 0xffff;
+        assert!(
+            count > 0 && at + count <= words.len(),
+            "malformed SPIR-V at word {at}"
+        );
+        if ANNOTATION.contains(&op) {
+            after_annotations = Some(at + count);
+            if op == OP_DECORATE && words[at + 2] == NO_CONTRACTION {
+                decorated.insert(words[at + 1]);
+            }
+        } else if ARITHMETIC.contains(&op) {
+            targets.push(words[at + 2]);
+        }
+        at += count;
+    }
+    let insert = after_annotations.expect("every shader has decorations (its bindings)");
+    let mut out = words[..insert].to_vec();
+    for id in targets.into_iter().filter(|id| !decorated.contains(id)) {
+        out.extend([(3 << 16) | OP_DECORATE, id, NO_CONTRACTION]);
+    }
+    out.extend_from_slice(&words[insert..]);
+    out
 }
 
 /// `scan_block` -> `SCAN_BLOCK`.

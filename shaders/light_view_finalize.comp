@@ -3,6 +3,7 @@
 // Twin: cpu::light_view::fit_finalize.
 #extension GL_GOOGLE_include_directive : require
 #include "shadow_common.glsl"
+#include "exact_div.glsl"
 layout(local_size_x = 8) in;
 
 layout(set = 0, binding = 0) readonly buffer Fit { uint fit_keys[]; };
@@ -13,7 +14,7 @@ void axis(float lo, float hi, out float x0, out float s) {
     float width = max(hi - lo, scale * 1e-5);
     float pad = width * 1e-3;
     x0 = lo - pad;
-    s = float(pc.sizes.z) / (width + 2.0 * pad);
+    s = div_rn(float(pc.sizes.z), width + 2.0 * pad);
 }
 
 void main() {

@@ -9,6 +9,7 @@
 #include "soft_common.glsl"
 #define PIXEL_ROTATION_BINDING 7
 #include "pixel_rotation.glsl"
+#include "exact_div.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 
 layout(set = 0, binding = 0) readonly buffer Samples { GpuViewSample samples[]; };
@@ -64,5 +65,5 @@ void main() {
         visible[i * words + w] = v;
         total += bitCount(v);
     }
-    result[i] = float(total) / float(n_light);
+    result[i] = div_rn(float(total), float(n_light));
 }
