@@ -166,8 +166,9 @@ fn storage_binding_over_the_limit_is_an_error() {
     let ctx = context();
     {
         let max = ctx.info().limits.max_storage_buffer_range as u64;
+        // Whole 4-byte elements past the limit (NVIDIA's limit is 2^32 - 1).
         let big = ctx
-            .create_buffer(BufferDesc::storage("big", max + 256))
+            .create_buffer(BufferDesc::storage("big", (max / 4 + 64) * 4))
             .unwrap();
         let small = ctx.create_buffer(BufferDesc::storage("sums", 256)).unwrap();
         let pipeline = reduce_pipeline(&ctx);
