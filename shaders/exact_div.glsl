@@ -30,8 +30,9 @@ float div_rn(float a, float b) {
         }
         r <<= 1;
     }
-    // r is twice the remainder: above mb rounds up, equal to it is a tie.
-    if (r > mb || (r == mb && (q & 1u) != 0u)) {
+    // r is twice the remainder: above mb rounds up. It never equals mb: a
+    // quotient of two floats is never halfway between two floats.
+    if (r > mb) {
         q += 1u;
     }
     float s = (a < 0.0) != (b < 0.0) ? -1.0 : 1.0;

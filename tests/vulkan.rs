@@ -472,3 +472,74 @@ fn timeout_setting_and_empty_submission() {
     ctx.submit_and_wait(rec).unwrap();
     finish(ctx);
 }
+
+/// `div_rn` (shaders/exact_div.glsl), the division whose results twins
+/// compare bit for bit: equal to the CPU's IEEE `a / b` on every ratio of
+/// light-sample counts up to 1024 (the soft visibility) and on random
+/// floats of both signs and every magnitude whose quotient is normal.
+#[test]
+fn shader_division_rounds_like_ieee() {
+    let ctx = context();
+    {
+        let mut pairs: Vec<[f32; 2]> = Vec::new();
+        for n in 1..=1024u32 {
+            for t in 0..=n {
+                pairs.push([t as f32, n as f32]);
+            }
+        }
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        while pairs.len() < 800_000 {
+            let r = next();
+            // Any sign and mantissa; exponents within ±40 so the quotient is normal.
+            let bits = |w: u32| (w & 0x807f_ffff) | ((127 + (w >> 23) % 81 - 40) << 23);
+            let (a, b) = (
+                f32::from_bits(bits(r as u32)),
+                f32::from_bits(bits((r >> 32) as u32)),
+            );
+            pairs.push([a, b]);
+        }
+        let n = pairs.len();
+        let input = ctx
+            .create_buffer_with_data(BufferDesc::storage("pairs", 8 * n as u64), &pairs)
+            .unwrap();
+        let output = ctx
+            .create_buffer(BufferDesc::storage("quotients", 4 * n as u64))
+            .unwrap();
+        let pipeline = ctx
+            .create_compute_pipeline(&ComputePipelineDesc {
+                name: "div_probe",
+                spirv: shaders::DIV_PROBE,
+                bindings: &[DescriptorKind::StorageBuffer; 2],
+                push_constant_bytes: 4,
+                specialization: &[],
+            })
+            .unwrap();
+        let mut rec = ctx.begin().unwrap();
+        rec.dispatch(
+            &pipeline,
+            &[Binding::storage(&input), Binding::storage(&output)],
+            &(n as u32).to_le_bytes(),
+            [n.div_ceil(64) as u32, 1, 1],
+        )
+        .unwrap();
+        ctx.submit_and_wait(rec).unwrap();
+        let got: Vec<f32> = ctx.read_buffer(&output, 0, n).unwrap();
+        let wrong: Vec<_> = pairs
+            .iter()
+            .zip(&got)
+            .filter(|([a, b], q)| (a / b).to_bits() != q.to_bits())
+            .take(5)
+            .collect();
+        assert!(
+            wrong.is_empty(),
+            "div_rn differs from IEEE a / b: {wrong:?}"
+        );
+    }
+    finish(ctx);
+}
