@@ -22,7 +22,7 @@
 //! frame that did build it would be reported (`lut_built_frames`).
 //!
 //! **Per pass**: every measured frame's GPU timestamp times (the frame's
-//! stats: `lights[0].stats.ms.*`, plus `view_samples_gpu`, `shade_cpu`,
+//! stats: `lights[0].stats.ms.*`, plus `view_samples_gpu`, `inputs_cpu`, `shade_cpu`,
 //! the GPU sum `gpu_ms` and `total_ms`) are collected; the median of each over
 //! the measured frames is printed after the benchmark and written to
 //! `$CARGO_TARGET_DIR/bench-passes/<group>/<parameter>.json` (default
@@ -75,7 +75,7 @@ impl PassTimes {
             }
         };
         push("total_ms", stats["total_ms"].as_f64());
-        for pass in ["view_samples_gpu", "shade_cpu"] {
+        for pass in ["view_samples_gpu", "inputs_cpu", "shade_cpu"] {
             push(pass, stats["ms"][pass].as_f64());
         }
         // One light in every benchmark scene.

@@ -265,6 +265,12 @@ pub struct FrameMs {
     /// GPU time of the view-sample pass (rasterization and resolve), from
     /// timestamp queries; NaN where the device has none.
     pub view_samples_gpu: f64,
+    /// Host time of the frame's inputs: the triangles in GPU form, the
+    /// alpha tables, their uploads, and the view samples read back and
+    /// converted (the view-sample pass's own submission excluded); 0 where
+    /// a frame reused its view.
+    #[serde(default)]
+    pub inputs_cpu: f64,
     /// Host time of shading the image on the CPU ([`crate::shade`]).
     pub shade_cpu: f64,
 }

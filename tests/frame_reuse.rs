@@ -20,6 +20,14 @@ fn reused(f: &Frame) -> Reused {
     }
 }
 
+/// The frame's host time for its inputs (0 where it reused its view).
+fn inputs_ms(f: &Frame) -> f64 {
+    match &f.stats {
+        Stats::Gpu(s) => s.ms.inputs_cpu,
+        _ => panic!("a GPU frame"),
+    }
+}
+
 /// Every light's visibility, bit for bit, and the image.
 fn assert_same(a: &Frame, b: &Frame, what: &str) {
     assert_eq!(a.dump.visibility.len(), b.dump.visibility.len());
@@ -81,6 +89,7 @@ fn reused_frames_equal_frames_from_scratch() {
         lights: vec![false, false],
     };
     assert_eq!(reused(&first), want);
+    assert!(inputs_ms(&first) > 0.0);
     assert_same(&first, &fresh.render(&desc, opts).unwrap(), "first frame");
 
     // Nothing changed: the same frame.
@@ -113,6 +122,7 @@ fn reused_frames_equal_frames_from_scratch() {
             lights: vec![true, false]
         }
     );
+    assert_eq!(inputs_ms(&moved), 0.0, "the view's inputs were kept");
     assert_same(
         &moved,
         &fresh.render(&desc, opts).unwrap(),
@@ -133,6 +143,7 @@ fn reused_frames_equal_frames_from_scratch() {
             lights: vec![false, false]
         }
     );
+    assert!(inputs_ms(&turned) > 0.0);
     assert_same(&turned, &fresh.render(&desc, opts).unwrap(), "camera moved");
 
     // Another frame in between overwrites the engine's buffers: a light

@@ -255,6 +255,10 @@ impl AlphaTables {
     /// The tables of `scene`'s alpha-tested triangles ([`Scene::triangles`]
     /// order); empty when it has none.
     pub fn new(scene: &Scene) -> Self {
+        // Most scenes have no alpha test: skip building every triangle.
+        if scene.alpha_tests().iter().all(Option::is_none) {
+            return AlphaTables::default();
+        }
         let mut tables = AlphaTables::default();
         // Textures by their test's address: `triangles` keeps every test
         // alive, so no address is reused meanwhile.

@@ -5,6 +5,7 @@
 use std::time::Instant;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::dump_assembly::make_dump;
 use super::inputs::{frame_light, gpu_triangles};
@@ -33,6 +34,8 @@ pub(super) struct FrameView {
     pub(super) triangles: usize,
     /// GPU time of the view-sample pass.
     pub(super) view_ms: f64,
+    /// Host time of the frame's inputs (`FrameMs::inputs_cpu`).
+    pub(super) inputs_ms: f64,
 }
 
 /// One light's visibility and evaluated flags, per view sample.
@@ -69,6 +72,7 @@ impl Engine {
     /// engine's buffers for the lights' passes, and read back.
     pub(super) fn frame_view(&mut self, desc: &SceneDescription) -> Result<FrameView> {
         let eye = desc.camera.eye;
+        let t = Instant::now();
         let (_, mut gpu_tris) = gpu_inputs(&[], &gpu_triangles(&desc.scene, eye));
         let alpha = AlphaTables::new(&desc.scene);
         mark_alpha_triangles(&mut gpu_tris, &alpha);
@@ -80,9 +84,11 @@ impl Engine {
             _ => None,
         };
         self.frame_id += 1;
+        let raster = Instant::now();
         let (view_buf, view_ms) = self
             .view
             .render(&self.ctx, &desc.camera, &gpu_tris, alpha)?;
+        let raster = raster.elapsed();
         let n = (desc.camera.width * desc.camera.height) as usize;
         let gpu_view = read_view_samples(&self.ctx, view_buf, n)?;
         // The CPU copy (shading, dump) is exactly what the GPU has.
@@ -91,7 +97,7 @@ impl Engine {
             height: desc.camera.height,
             eye,
             samples: gpu_view
-                .iter()
+                .par_iter()
                 .map(|s| {
                     (s.flags != 0).then(|| ViewSample {
                         position: eye + Vec3::from_array(s.position).as_dvec3(),
@@ -109,6 +115,7 @@ impl Engine {
             n,
             triangles: gpu_tris.len(),
             view_ms,
+            inputs_ms: (t.elapsed() - raster).as_secs_f64() * 1e3,
         })
     }
 
@@ -147,6 +154,7 @@ impl Engine {
             height: desc.camera.height,
             ms: FrameMs {
                 view_samples_gpu: fv.view_ms,
+                inputs_cpu: fv.inputs_ms,
                 shade_cpu: shade_ms,
             },
             lights: lights.iter().map(|l| l.stats.clone()).collect(),

@@ -121,7 +121,10 @@ impl Engine {
                 && k.engine_frame == self.frame_id
         });
         let fv = match same_view {
-            Some(k) => k.view.clone(),
+            Some(k) => FrameView {
+                inputs_ms: 0.0,
+                ..k.view.clone()
+            },
             None => self.frame_view(desc)?,
         };
         let mut lights = Vec::with_capacity(desc.lights.len());
