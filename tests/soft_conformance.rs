@@ -372,6 +372,54 @@ fn batched_runs_equal_one_run() {
     engine.context().check_validation().unwrap();
 }
 
+/// A frame reads no light-sample masks back (only a textured light's
+/// colours use them): its visibility equals, bit for bit, the library's
+/// soft shadows of the frame's own view samples, which do read them, in
+/// one run, in triangle batches (whose AND still needs each batch's masks)
+/// and in view-sample batches.
+#[test]
+fn frames_without_masks_keep_their_visibility() {
+    use alias_free_shadows::render::FrameOptions;
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let mut desc = sized(file::load("builtin:demo").unwrap());
+    let light = Light {
+        samples: 200,
+        ..area_light(&desc)
+    };
+    desc.lights = vec![light.clone()];
+    let eye = desc.camera.eye;
+    let batch = desc.scene.triangle_count() / 3 + 1;
+    for (triangles, samples) in [(None, None), (Some(batch), None), (None, Some(700))] {
+        engine.set_triangle_batch_limit(triangles);
+        engine.set_view_sample_batch_limit(samples);
+        for mode in [SoftMode::Exact, SoftMode::Lut] {
+            desc.shadows.mode = mode;
+            let frame = engine.render(&desc, FrameOptions::default()).unwrap();
+            let library = engine
+                .soft_shadows(&desc.scene, eye, &frame.view.samples, &light, &desc.shadows)
+                .unwrap();
+            assert!(!library.visible.is_empty(), "the library's masks");
+            let want: Vec<f32> = library
+                .visibility
+                .iter()
+                .map(|v| v.unwrap_or(0.0))
+                .collect();
+            let got: Vec<f32> = frame.dump.visibility[0].iter().map(|p| p[0]).collect();
+            let what = format!("{mode:?}, batches {triangles:?} triangles, {samples:?} samples");
+            assert_eq!(got.len(), want.len(), "{what}");
+            let differ = got
+                .iter()
+                .zip(&want)
+                .filter(|(a, b)| a.to_bits() != b.to_bits())
+                .count();
+            assert_eq!(differ, 0, "{what}: pixels whose visibility differs");
+        }
+    }
+    engine.set_triangle_batch_limit(None);
+    engine.set_view_sample_batch_limit(None);
+    engine.context().check_validation().unwrap();
+}
+
 /// Issue 5, load: triangles whose caster buffers would pass the device's
 /// binding limit (over a million here) run in batches whose masks are
 /// ANDed. Forced here with small batches (a sample's own triangle must be

@@ -149,16 +149,28 @@ fn triangle_range(
     of: RunOf,
 ) -> Result<ShadowOutput> {
     if len > batch {
+        // The batches' AND needs each one's masks, wanted or not.
+        let wanted = std::mem::replace(&mut passes.read_masks, true);
         let mut out: Option<ShadowOutput> = None;
-        for s in (start..start + len).step_by(batch) {
-            let l = batch.min(start + len - s);
-            let o = triangle_range(passes, copy, ctx, inputs, s, l, batch, of)?;
-            out = Some(match out {
-                None => o,
-                Some(acc) => intersect(acc, o, of.soft),
-            });
+        let mut batches = || -> Result<()> {
+            for s in (start..start + len).step_by(batch) {
+                let l = batch.min(start + len - s);
+                let o = triangle_range(passes, copy, ctx, inputs, s, l, batch, of)?;
+                out = Some(match out.take() {
+                    None => o,
+                    Some(acc) => intersect(acc, o, of.soft),
+                });
+            }
+            Ok(())
+        };
+        let ran = batches();
+        passes.read_masks = wanted;
+        ran?;
+        let mut out = out.ok_or_else(|| Error::InvalidInput("no triangles".into()))?;
+        if let (false, Some(so)) = (wanted, out.soft.as_mut()) {
+            so.visible = Vec::new();
         }
-        return out.ok_or_else(|| Error::InvalidInput("no triangles".into()));
+        return Ok(out);
     }
     let ran = if start == 0 && len == inputs.nt as usize {
         passes.run(ctx, inputs, of.light, of.resolution, of.soft)?
@@ -291,7 +303,12 @@ fn reserve_results(out: &mut ShadowOutput, n: usize) -> Result<()> {
         so.visibility
             .try_reserve_exact(more)
             .map_err(|_| too_large("visibility", 8 * n as u128))?;
-        let words = so.mask_words * more;
+        // Masks only where the run read them (LightPasses::read_masks).
+        let words = if so.visible.is_empty() {
+            0
+        } else {
+            so.mask_words * more
+        };
         so.visible
             .try_reserve_exact(words)
             .map_err(|_| too_large("light-sample masks", 4 * (so.mask_words * n) as u128))?;

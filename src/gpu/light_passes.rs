@@ -58,7 +58,8 @@ pub struct SoftOutput {
     /// where not evaluated (invalid, or facing away from the whole light).
     pub visibility: Vec<Option<f32>>,
     /// Visible light samples per view sample, `mask_words` words each (bit
-    /// `j % 32` of word `j / 32` for light sample `j`).
+    /// `j % 32` of word `j / 32` for light sample `j`); empty when the run
+    /// did not read them back ([`LightPasses::read_masks`]).
     pub visible: Vec<u32>,
     /// Words per view sample in `visible` (4 per 128-sample block).
     pub mask_words: usize,
@@ -114,6 +115,11 @@ pub struct LightPasses {
     pub counters: GrowBuffer,
     /// Times each pass of a run (GPU timestamps or host wall clock).
     pub clock: PassClock,
+    /// Whether a soft run reads the visible light-sample masks back (on by
+    /// default): 16 B per 128-sample block and view sample, 32 MiB at 512²
+    /// and 1024 samples, which only textured lights, the library's masks
+    /// and triangle batches (their AND) use.
+    pub read_masks: bool,
 }
 
 impl LightPasses {
@@ -131,6 +137,7 @@ impl LightPasses {
             resolve: ResolvePass::new(ctx)?,
             counters: GrowBuffer::storage("counters"),
             clock: PassClock::new(ctx)?,
+            read_masks: true,
         })
     }
 
@@ -261,6 +268,7 @@ impl LightPasses {
             resolve,
             counters,
             clock,
+            read_masks: _,
         } = self;
         let stages = Stages {
             light_view,
@@ -314,7 +322,7 @@ impl LightPasses {
         let soft_out = match soft {
             Some(_) => {
                 let words = frame.mask_words as usize;
-                let visible = if words > 0 && n > 0 {
+                let visible = if words > 0 && n > 0 && self.read_masks {
                     ctx.read_buffer_staged(self.resolve.visible.buffer(), 0, words * n)?
                 } else {
                     Vec::new()

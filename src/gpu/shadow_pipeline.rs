@@ -196,6 +196,13 @@ impl ShadowPipeline {
         self.passes.clusters.enabled = on;
     }
 
+    /// Whether soft runs read the visible light-sample masks back
+    /// ([`LightPasses::read_masks`]; on by default). Off, their
+    /// `SoftOutput::visible` is empty and a frame skips the read-back.
+    pub fn set_read_masks(&mut self, on: bool) {
+        self.passes.read_masks = on;
+    }
+
     /// Limits the view samples per run (tests: forces the batched path that
     /// large runs take); `None` lifts the limit.
     pub fn set_batch_limit(&mut self, limit: Option<usize>) {

@@ -234,6 +234,8 @@ impl Engine {
         let light = &desc.lights[k];
         let (lv, soft, texels) = frame_light(desc, k)?;
         self.shadows.set_clusters(desc.shadows.clusters);
+        // The masks are read back only for a textured light's colours.
+        self.shadows.set_read_masks(light.sample_colors().is_some());
         let t = Instant::now();
         let view_buf = self.view.samples();
         let tri_buf = self.triangles.buffer();
