@@ -57,6 +57,22 @@ pub const UNSURE_SEGMENTS: u64 = 4;
 /// 2^18; `torus_knot:20000` 1410 ms (two ranges) against 940–1090 ms.
 const RANGE_TARGET: u64 = 1 << 17;
 
+/// The entries per segment a range is planned to list: on a CPU device
+/// [`RANGE_TARGET`] (small lists stay in its caches); on a GPU 0.9 of a
+/// segment, since there each range costs two host round trips (its
+/// submission and its counts' read-back) and caches are not what limits
+/// it: on an H200, 6 to 69 ranges per frame came with 10–100 ms of host
+/// time that exact mode does not have (f8858d6; these bigger ranges were
+/// not measured there).
+fn range_target(cpu: bool, whole_segment: u64) -> u64 {
+    let most = whole_segment * 9 / 10;
+    if cpu {
+        RANGE_TARGET.min(most)
+    } else {
+        most
+    }
+}
+
 /// Words from one segment's count to the next (`UNSURE_COUNT_STRIDE`): a
 /// cache line apart.
 const UNSURE_COUNT_STRIDE: usize = 16;
@@ -348,7 +364,7 @@ impl SoftOcclusionPass {
         let safe = (UNSURE_SEGMENTS * (segment / per_unit).max(1)) as u32;
         // Planned without the limit, so that a limit makes ranges overflow.
         let whole_segment = self.unsure_list.len() / 32 / UNSURE_SEGMENTS;
-        let target = RANGE_TARGET.min(whole_segment * 9 / 10);
+        let target = range_target(r.ctx.info().is_cpu(), whole_segment);
         let plan = if plan.len() == units as usize {
             plan
         } else {
