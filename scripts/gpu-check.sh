@@ -89,6 +89,22 @@ if want sizes; then
     done
   done
 fi
+if [ -s "$R" ]; then
+  # One line per run: frame total, the light's wall and GPU time, host time.
+  python3 - "$R" >> "$S" <<'PY'
+import json, sys
+for block in open(sys.argv[1]).read().split("### ")[1:]:
+    head = block.split("\n")[0].replace("/work/shared/assets/", "")
+    try:
+        d = json.loads(block[block.index("{"):block.rindex("}") + 1])
+        l = d["lights"][0]["stats"]
+        print(f"{head[:70]:70} total {d['total_ms']:7.1f} light {l['wall_ms']:7.1f} "
+              f"gpu {l['gpu_ms']:7.1f} inputs {d['ms'].get('inputs_cpu', 0):5.1f} "
+              f"shade {d['ms']['shade_cpu']:5.1f} ranges {l.get('unsure_ranges', 0)}")
+    except (ValueError, KeyError) as e:
+        print(f"{head[:70]:70} no stats ({e})")
+PY
+fi
 if want reuse; then
   echo "== reuse ($(left) s left)" >> "$S"
   timeout 60 "$B/bin/reuse" "$toy" 512 3 2>&1 | tail -40 >> "$S"
