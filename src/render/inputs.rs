@@ -207,8 +207,7 @@ pub fn gpu_triangles(scene: &Scene, eye: DVec3) -> Vec<([Vec3; 3], bool)> {
     let tests = scene.alpha_tests();
     let mut out = Vec::with_capacity(scene.triangle_count());
     for (mi, m) in scene.meshes.iter().enumerate() {
-        // As `SceneTriangle::closed`: an alpha-tested surface has holes.
-        let closed = m.closed && tests[mi].is_none() && !inside[mi];
+        let closed = crate::scene::casts_closed(m, &tests[mi]) && !inside[mi];
         out.par_extend(m.indices.par_iter().map(|&[a, b, c]| {
             let v = [a, b, c].map(|i| (m.positions[i as usize] - eye).as_vec3());
             (v, closed)

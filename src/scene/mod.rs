@@ -449,8 +449,7 @@ impl Scene {
                     alpha,
                     vertices: m.triangle(ti),
                     mesh: mi as u32,
-                    // An alpha-tested surface has holes: never closed.
-                    closed: m.closed && tests[mi].is_none(),
+                    closed: casts_closed(m, &tests[mi]),
                 });
             }
         }
@@ -500,6 +499,12 @@ impl Scene {
         m.closed = false;
         self.meshes.push(m);
     }
+}
+
+/// Whether mesh `m`, with its alpha test `test` ([`Scene::alpha_tests`]),
+/// casts as a closed mesh: an alpha-tested surface has holes, never closed.
+pub(crate) fn casts_closed(m: &Mesh, test: &Option<std::sync::Arc<AlphaTest>>) -> bool {
+    m.closed && test.is_none()
 }
 
 /// Whether the ray p + t·dir, t > 0, crosses triangle `v` (Möller–Trumbore).
