@@ -450,6 +450,79 @@ fn closed_is_computed_on_positions_welded_across_seams() {
     assert!(!s.meshes[1].closed);
 }
 
+/// One primitive holding two seamed cubes (closed) and an open box (five
+/// faces): the closed cubes become closed meshes of their own, the box
+/// stays open under the primitive's name, and nothing is lost or moved.
+#[test]
+fn closed_parts_of_an_open_primitive_cast_as_closed_meshes() {
+    let mut d = Doc::new();
+    let (cube, cidx) = seamed_cube(6);
+    let (open, oidx) = seamed_cube(5);
+    let shift = |p: &[[f32; 3]], dx: f32| -> Vec<[f32; 3]> {
+        p.iter().map(|v| [v[0] + dx, v[1], v[2]]).collect()
+    };
+    // Open box first, then a cube at x + 2 and one at x + 4.
+    let mut positions = open.clone();
+    let mut indices = oidx.clone();
+    for dx in [2.0, 4.0] {
+        let base = positions.len() as u16;
+        positions.extend(shift(&cube, dx));
+        indices.extend(cidx.iter().map(|i| i + base));
+    }
+    let p = d.positions(&positions);
+    let i = d.indices_u16(&indices);
+    d.mesh(
+        "parts",
+        json!({"attributes": {"POSITION": p}, "indices": i}),
+    );
+    d.nodes(json!([{"mesh": 0}]), &[0]);
+    let s = load_ok(&d.glb());
+    let names: Vec<&str> = s.meshes.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "parts/primitive#0",
+            "parts/primitive#0/closed#0",
+            "parts/primitive#0/closed#1"
+        ]
+    );
+    assert_eq!(
+        s.meshes.iter().map(|m| m.closed).collect::<Vec<_>>(),
+        [false, true, true]
+    );
+    assert_eq!(s.meshes[0].indices.len(), 10);
+    assert_eq!(s.meshes[0].positions.len(), 20, "only the box's vertices");
+    for (k, dx) in [(1, 2.0), (2, 4.0)] {
+        let m = &s.meshes[k];
+        assert_eq!((m.indices.len(), m.positions.len()), (12, 24));
+        assert!(
+            (signed_volume(m) - 1.0).abs() < 1e-12,
+            "outward, unit volume"
+        );
+        let lo = m.positions.iter().fold(DVec3::INFINITY, |a, p| a.min(*p));
+        assert_eq!(lo, DVec3::new(dx, 0.0, 0.0));
+    }
+    // A cube that shares a corner position with the box joins its part:
+    // that part is open, so nothing splits.
+    let mut d = Doc::new();
+    let mut positions = open.clone();
+    let mut indices = oidx.clone();
+    let base = positions.len() as u16;
+    positions.extend(shift(&cube, 1.0));
+    indices.extend(cidx.iter().map(|i| i + base));
+    let p = d.positions(&positions);
+    let i = d.indices_u16(&indices);
+    d.mesh(
+        "joined",
+        json!({"attributes": {"POSITION": p}, "indices": i}),
+    );
+    d.nodes(json!([{"mesh": 0}]), &[0]);
+    let s = load_ok(&d.glb());
+    assert_eq!(s.meshes.len(), 1);
+    assert!(!s.meshes[0].closed);
+    assert_eq!(s.meshes[0].indices.len(), 22);
+}
+
 #[test]
 fn points_and_lines_are_skipped_with_a_warning() {
     let mut d = Doc::new();
@@ -934,7 +1007,15 @@ fn lantern_loads_without_its_base_colour_texture() {
     let s = load_gltf(&path).unwrap();
     assert_eq!(s.triangle_count(), json_triangle_count(&path));
     assert_eq!(s.triangle_count(), (2616 + 3744 + 9822) / 3);
-    assert_eq!(s.meshes.len(), 3);
+    // Three primitives, whose closed parts (chain links, the lantern's
+    // solids) cast as closed meshes of their own.
+    let primitives = s.meshes.iter().filter(|m| !m.name.contains("/closed#"));
+    assert_eq!(primitives.count(), 3);
+    assert_eq!(s.meshes.len(), 3 + 14);
+    assert!(s
+        .meshes
+        .iter()
+        .all(|m| m.closed == m.name.contains("/closed#")));
     let w = s.warnings.join("\n");
     assert!(
         w.contains("Lantern_baseColor.png") && w.contains("not found"),

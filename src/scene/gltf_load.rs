@@ -27,7 +27,8 @@ use json::accessor::{ComponentType, Type};
 use json::validation::Checked;
 
 use super::{
-    is_closed, AlphaMode, Camera, MagFilter, Material, Mesh, Sampler, Scene, Texture, Wrap,
+    is_closed, split_closed_parts, weld, welded_triangles, AlphaMode, Camera, MagFilter, Material,
+    Mesh, Sampler, Scene, Texture, Wrap,
 };
 use crate::light::{Distribution, Light, LightShape};
 use crate::{Error, Result};
@@ -734,7 +735,7 @@ impl<'a> Loader<'a> {
                 .load_primitive(prim, &name, world, materials)
                 .map_err(|e| format!("mesh {name:?}: {e}"))?
             {
-                out.push(m);
+                out.extend(split_closed_parts(m));
             }
         }
         Ok(())
@@ -1326,31 +1327,7 @@ fn triangulate(mode: json::mesh::Mode, idx: &[u32]) -> Vec<[u32; 3]> {
 /// duplicate vertices along UV seams). Triangles that collapse after welding
 /// have no area and are left out of the test.
 pub(crate) fn welded_is_closed(positions: &[DVec3], indices: &[[u32; 3]]) -> bool {
-    let key = |p: &DVec3| {
-        [
-            (p.x + 0.0).to_bits(),
-            (p.y + 0.0).to_bits(),
-            (p.z + 0.0).to_bits(),
-        ]
-    };
-    let mut first: HashMap<[u64; 3], u32> = HashMap::with_capacity(positions.len());
-    let remap: Vec<u32> = positions
-        .iter()
-        .enumerate()
-        .map(|(i, p)| *first.entry(key(p)).or_insert(i as u32))
-        .collect();
-    let welded: Vec<[u32; 3]> = indices
-        .iter()
-        .filter_map(|t| {
-            let w = [
-                *remap.get(t[0] as usize)?,
-                *remap.get(t[1] as usize)?,
-                *remap.get(t[2] as usize)?,
-            ];
-            (w[0] != w[1] && w[1] != w[2] && w[0] != w[2]).then_some(w)
-        })
-        .collect();
-    is_closed(&welded)
+    is_closed(&welded_triangles(&weld(positions), indices))
 }
 
 #[cfg(test)]

@@ -14,6 +14,7 @@ pub mod gltf_load;
 pub mod gltf_write;
 
 use glam::{DVec2, DVec3};
+use std::collections::HashMap;
 
 /// How a material's alpha is interpreted (glTF `alphaMode`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -210,6 +211,42 @@ impl Mesh {
         ]
     }
 
+    /// The triangles `tris` of this mesh as a mesh of their own (only the
+    /// vertices they use), named `name`, closed or not as `closed` says.
+    fn subset(&self, name: String, tris: &[usize], closed: bool) -> Mesh {
+        let mut new_index = vec![u32::MAX; self.positions.len()];
+        let mut used: Vec<u32> = Vec::new();
+        let indices = tris
+            .iter()
+            .map(|&ti| {
+                self.indices[ti].map(|i| {
+                    let slot = &mut new_index[i as usize];
+                    if *slot == u32::MAX {
+                        *slot = used.len() as u32;
+                        used.push(i);
+                    }
+                    *slot
+                })
+            })
+            .collect();
+        let pick = |i: &u32| *i as usize;
+        Mesh {
+            name,
+            positions: used.iter().map(|i| self.positions[pick(i)]).collect(),
+            uvs: self
+                .uvs
+                .as_ref()
+                .map(|u| used.iter().map(|i| u[pick(i)]).collect()),
+            normals: self
+                .normals
+                .as_ref()
+                .map(|n| used.iter().map(|i| n[pick(i)]).collect()),
+            indices,
+            material: self.material,
+            closed,
+        }
+    }
+
     /// Applies an affine transform to every vertex (and keeps orientation
     /// counter-clockwise when the transform mirrors).
     pub fn transform(&mut self, m: &glam::DMat4) {
@@ -235,7 +272,6 @@ impl Mesh {
 /// traverse it in opposite directions (a closed, consistently oriented
 /// two-manifold). Positions are compared by index, so a mesh must be welded.
 pub fn is_closed(indices: &[[u32; 3]]) -> bool {
-    use std::collections::HashMap;
     if indices.is_empty() {
         return false;
     }
@@ -254,6 +290,117 @@ pub fn is_closed(indices: &[[u32; 3]]) -> bool {
     directed
         .iter()
         .all(|(&(a, b), &n)| n == 1 && directed.get(&(b, a)) == Some(&1))
+}
+
+/// Per vertex, the first vertex with a bit-identical position (glTF
+/// models duplicate vertices along UV and normal seams); -0 and +0 weld.
+pub(crate) fn weld(positions: &[DVec3]) -> Vec<u32> {
+    let key = |p: &DVec3| {
+        [
+            (p.x + 0.0).to_bits(),
+            (p.y + 0.0).to_bits(),
+            (p.z + 0.0).to_bits(),
+        ]
+    };
+    let mut first: HashMap<[u64; 3], u32> = HashMap::with_capacity(positions.len());
+    positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| *first.entry(key(p)).or_insert(i as u32))
+        .collect()
+}
+
+/// `indices` through `remap` ([`weld`]), without the triangles that
+/// collapse (two corners at one position: no area, nothing to close).
+pub(crate) fn welded_triangles(remap: &[u32], indices: &[[u32; 3]]) -> Vec<[u32; 3]> {
+    indices
+        .iter()
+        .filter_map(|t| {
+            let w = [
+                *remap.get(t[0] as usize)?,
+                *remap.get(t[1] as usize)?,
+                *remap.get(t[2] as usize)?,
+            ];
+            (w[0] != w[1] && w[1] != w[2] && w[0] != w[2]).then_some(w)
+        })
+        .collect()
+}
+
+/// At most this many closed parts become meshes of their own per mesh;
+/// past it they cast as one closed mesh (their union is closed too), so
+/// that a mesh of many small closed parts does not multiply the per-mesh
+/// work (the containment tests of a frame's inputs).
+const MOST_CLOSED_PARTS: usize = 64;
+
+/// An open mesh split into its closed parts (connected components, over
+/// welded positions, that are closed by [`is_closed`]) and the rest, so
+/// that the closed parts cast as closed meshes: only from their faces
+/// that face away from the light (paper §3.3), which spares the tests of
+/// their other faces. glTF models often put closed solids (wheels, bolts,
+/// beads) in one primitive with open surfaces. A closed mesh, or one
+/// without a closed part, comes back whole. Triangle order: the open rest
+/// first (under the mesh's name), then the closed parts.
+pub fn split_closed_parts(mesh: Mesh) -> Vec<Mesh> {
+    if mesh.closed || mesh.indices.is_empty() {
+        return vec![mesh];
+    }
+    let remap = weld(&mesh.positions);
+    // Connected components over welded vertices (union-find).
+    let mut parent: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+    fn root(parent: &mut [u32], mut v: u32) -> u32 {
+        while parent[v as usize] != v {
+            let up = parent[parent[v as usize] as usize];
+            parent[v as usize] = up;
+            v = up;
+        }
+        v
+    }
+    for t in &mesh.indices {
+        let r0 = root(&mut parent, remap[t[0] as usize]);
+        for &i in &t[1..] {
+            let r = root(&mut parent, remap[i as usize]);
+            if r != r0 {
+                parent[r as usize] = r0;
+            }
+        }
+    }
+    let mut parts: HashMap<u32, Vec<usize>> = HashMap::new();
+    for (ti, t) in mesh.indices.iter().enumerate() {
+        let r = root(&mut parent, remap[t[0] as usize]);
+        parts.entry(r).or_default().push(ti);
+    }
+    let mut closed: Vec<Vec<usize>> = parts
+        .into_values()
+        .filter(|tris| {
+            let own: Vec<[u32; 3]> = tris.iter().map(|&ti| mesh.indices[ti]).collect();
+            is_closed(&welded_triangles(&remap, &own))
+        })
+        .collect();
+    if closed.is_empty() {
+        return vec![mesh];
+    }
+    // In the order of their first triangle (HashMap order is not stable).
+    closed.sort_unstable_by_key(|tris| tris[0]);
+    if closed.len() > MOST_CLOSED_PARTS {
+        let mut all: Vec<usize> = closed.concat();
+        all.sort_unstable();
+        closed = vec![all];
+    }
+    let mut in_closed = vec![false; mesh.indices.len()];
+    for &ti in closed.iter().flatten() {
+        in_closed[ti] = true;
+    }
+    let rest: Vec<usize> = (0..mesh.indices.len())
+        .filter(|&ti| !in_closed[ti])
+        .collect();
+    let mut out = Vec::with_capacity(closed.len() + 1);
+    if !rest.is_empty() {
+        out.push(mesh.subset(mesh.name.clone(), &rest, false));
+    }
+    for (k, tris) in closed.iter().enumerate() {
+        out.push(mesh.subset(format!("{}/closed#{k}", mesh.name), tris, true));
+    }
+    out
 }
 
 /// A pinhole camera. `fov_y_deg` is the full vertical field of view.
@@ -541,4 +688,62 @@ pub struct SceneTriangle {
     pub mesh: u32,
     /// Whether that mesh is closed (and opaque: an alpha-tested mesh never is).
     pub closed: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `n` disjoint outward tetrahedra (unwelded: each triangle has its own
+    /// three vertices, as a glTF with per-face normals stores them), then
+    /// one open triangle.
+    fn tetrahedra_and_a_triangle(n: usize) -> Mesh {
+        let mut positions = Vec::new();
+        let mut indices = Vec::new();
+        for k in 0..n {
+            let o = DVec3::new(3.0 * k as f64, 0.0, 0.0);
+            let v = [DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z].map(|p| p + o);
+            for [a, b, c] in [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]] {
+                let base = positions.len() as u32;
+                positions.extend([v[a], v[b], v[c]]);
+                indices.push([base, base + 1, base + 2]);
+            }
+        }
+        let base = positions.len() as u32;
+        positions.extend([
+            DVec3::new(0.0, -5.0, 0.0),
+            DVec3::new(1.0, -5.0, 0.0),
+            DVec3::new(0.0, -5.0, 1.0),
+        ]);
+        indices.push([base, base + 1, base + 2]);
+        Mesh::new("m", positions, indices)
+    }
+
+    #[test]
+    fn closed_parts_split_off_and_many_stay_together() {
+        let few = split_closed_parts(tetrahedra_and_a_triangle(3));
+        let shape: Vec<(String, usize, bool)> = few
+            .iter()
+            .map(|m| (m.name.clone(), m.indices.len(), m.closed))
+            .collect();
+        assert_eq!(
+            shape,
+            [
+                ("m".to_string(), 1, false),
+                ("m/closed#0".to_string(), 4, true),
+                ("m/closed#1".to_string(), 4, true),
+                ("m/closed#2".to_string(), 4, true),
+            ]
+        );
+        // Each part keeps its corners: the second tetrahedron starts at x = 3.
+        assert_eq!(few[2].triangle(0)[0], DVec3::new(3.0, 0.0, 0.0));
+        // Past MOST_CLOSED_PARTS the closed parts cast as one closed mesh.
+        let many = split_closed_parts(tetrahedra_and_a_triangle(MOST_CLOSED_PARTS + 1));
+        assert_eq!(many.len(), 2);
+        assert_eq!(many[1].indices.len(), 4 * (MOST_CLOSED_PARTS + 1));
+        assert!(many[1].closed && !many[0].closed);
+        // A mesh without a closed part comes back whole.
+        let open = split_closed_parts(tetrahedra_and_a_triangle(0));
+        assert_eq!((open.len(), open[0].indices.len()), (1, 1));
+    }
 }
