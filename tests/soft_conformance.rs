@@ -482,3 +482,152 @@ fn triangle_batches_equal_one_run() {
     engine.set_triangle_batch_limit(None);
     engine.context().check_validation().unwrap();
 }
+
+/// A unit-less box from `lo` to `hi` as a glTF exporter writes it: four
+/// vertices per face (per-face normals and UVs), outward counter-clockwise
+/// triangles; the last `faces` of its six (fewer: a box open at the top).
+fn seamed_box(
+    lo: DVec3,
+    hi: DVec3,
+    faces: usize,
+    positions: &mut Vec<DVec3>,
+    indices: &mut Vec<[u32; 3]>,
+) {
+    let d = hi - lo;
+    // (corner, two edges counter-clockwise seen from outside), in units of d.
+    let f: [([f64; 3], [f64; 3], [f64; 3]); 6] = [
+        ([0., 1., 0.], [0., 0., 1.], [1., 0., 0.]), // +y
+        ([1., 0., 0.], [0., 1., 0.], [0., 0., 1.]), // +x
+        ([0., 0., 0.], [0., 0., 1.], [0., 1., 0.]), // -x
+        ([0., 0., 1.], [1., 0., 0.], [0., 1., 0.]), // +z
+        ([0., 0., 0.], [0., 1., 0.], [1., 0., 0.]), // -z
+        ([0., 0., 0.], [1., 0., 0.], [0., 0., 1.]), // -y
+    ];
+    for (o, u, v) in f.iter().skip(6 - faces) {
+        let at = |a: f64, b: f64| {
+            lo + d * DVec3::new(
+                o[0] + a * u[0] + b * v[0],
+                o[1] + a * u[1] + b * v[1],
+                o[2] + a * u[2] + b * v[2],
+            )
+        };
+        let base = positions.len() as u32;
+        positions.extend([at(0., 0.), at(1., 0.), at(1., 1.), at(0., 1.)]);
+        indices.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+    }
+}
+
+/// Closed parts of an open mesh (`scene::split_closed_parts`, as the glTF
+/// loader applies it) cast as closed meshes: a seamed cube sunk a little
+/// into an open ground, a cube floating above it, a box open at the top
+/// (whose inside the camera sees: treated as closed, its walls would let
+/// light in), all in one mesh. The oracle tests every face of every part; exact and
+/// look-up modes must agree with it as on any scene, with the closed rule
+/// dropping faces (the counter says it fired).
+#[test]
+fn closed_parts_of_an_open_mesh_conform() {
+    use alias_free_shadows::scene::{split_closed_parts, Mesh, Scene};
+    let (mut positions, mut indices) = (Vec::new(), Vec::new());
+    let g = 4.0;
+    positions.extend([
+        DVec3::new(-g, 0.0, -g),
+        DVec3::new(g, 0.0, -g),
+        DVec3::new(g, 0.0, g),
+        DVec3::new(-g, 0.0, g),
+    ]);
+    indices.extend([[0, 3, 2], [0, 2, 1]]);
+    seamed_box(
+        DVec3::new(-1.5, -0.01, -0.5),
+        DVec3::new(-0.5, 0.99, 0.5),
+        6,
+        &mut positions,
+        &mut indices,
+    );
+    seamed_box(
+        DVec3::new(-1.2, 1.6, -0.3),
+        DVec3::new(-0.6, 2.0, 0.3),
+        6,
+        &mut positions,
+        &mut indices,
+    );
+    seamed_box(
+        DVec3::new(0.5, 0.0, -0.5),
+        DVec3::new(1.5, 1.0, 0.5),
+        5,
+        &mut positions,
+        &mut indices,
+    );
+    let mesh = Mesh::new("parts", positions, indices);
+    assert!(!mesh.closed);
+    let meshes = split_closed_parts(mesh);
+    let closed: Vec<bool> = meshes.iter().map(|m| m.closed).collect();
+    assert_eq!(closed, [false, true, true], "the two cubes split off");
+    let scene = Scene {
+        meshes,
+        ..Default::default()
+    };
+    let (mut camera, _) = file::default_view(&scene);
+    camera.width = SIZE;
+    camera.height = SIZE;
+    // Close on the parts: the ground fills the rest of the picture.
+    camera.eye = DVec3::new(0.5, 3.0, 4.5);
+    camera.target = DVec3::new(-0.3, 0.7, 0.0);
+    camera.up = DVec3::Y;
+    let light = Light {
+        shape: LightShape::Sphere {
+            position: DVec3::new(-2.0, 6.0, 3.0),
+            radius: 0.6,
+        },
+        samples: 128,
+        ..file::load("builtin:demo").unwrap().lights[0].clone()
+    };
+    let desc = SceneDescription {
+        name: "closed parts".into(),
+        scene,
+        camera,
+        lights: vec![light.clone()],
+        shadows: Default::default(),
+    };
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    for mode in [SoftMode::Exact, SoftMode::Lut] {
+        let a = agreement(&mut engine, &desc, &light, mode);
+        let share = a.disagree as f64 / a.pairs.max(1) as f64;
+        eprintln!(
+            "closed parts {mode:?}: {} pixels, {} of {} pairs disagree ({share:.2e})",
+            a.pixels, a.disagree, a.pairs
+        );
+        assert!(a.pixels > SIZE as usize * SIZE as usize / 4);
+        assert!(
+            share <= EXACT_SHARE,
+            "{mode:?}: {share:.2e} of the pairs disagree"
+        );
+    }
+    // A rendered frame (its own view samples; frames open no mesh for
+    // samples seen from inside, so the split alone decides what is closed).
+    let frame = engine
+        .render(&desc, alias_free_shadows::render::FrameOptions::default())
+        .unwrap();
+    let (off, pixels) = common::pixels_off_the_oracle(&desc, &frame, 0, |_, _| {});
+    eprintln!("closed parts, frame: {off} of {pixels} pixels off the oracle");
+    assert!(pixels > SIZE as usize * SIZE as usize / 4);
+    assert_eq!(off, 0, "{off} of {pixels} pixels off the oracle");
+    // The closed rule fired: faces of the cubes that face the whole light
+    // were dropped.
+    let eye = desc.camera.eye;
+    let oracle = Oracle::new(&desc.scene.triangles(), eye);
+    let view = engine_view_samples(&oracle, &desc);
+    let r = engine
+        .soft_shadows(
+            &desc.scene,
+            eye,
+            &view.samples,
+            &light,
+            &ShadowSettings::default(),
+        )
+        .unwrap();
+    assert!(
+        r.stats.triangles_front_facing_closed > 0,
+        "no closed face was dropped"
+    );
+    engine.context().check_validation().unwrap();
+}
