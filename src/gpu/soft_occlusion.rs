@@ -430,7 +430,7 @@ impl SoftOcclusionPass {
 
     /// Entries the unsure list holds per range for a light of `blocks`
     /// blocks: its size, or the limit, but never below one unit's bound
-    /// ([`unit_entries`]) per segment, so that a range of one unit always
+    /// (`unit_entries`) per segment, so that a range of one unit always
     /// fits.
     pub fn capacity(&self, blocks: usize) -> u64 {
         let limit = self
