@@ -455,28 +455,24 @@ fn closed_is_computed_on_positions_welded_across_seams() {
 /// stays open under the primitive's name, and nothing is lost or moved.
 #[test]
 fn closed_parts_of_an_open_primitive_cast_as_closed_meshes() {
-    let mut d = Doc::new();
-    let (cube, cidx) = seamed_cube(6);
-    let (open, oidx) = seamed_cube(5);
-    let shift = |p: &[[f32; 3]], dx: f32| -> Vec<[f32; 3]> {
-        p.iter().map(|v| [v[0] + dx, v[1], v[2]]).collect()
+    // One primitive: the open box at the origin, then a seamed cube at
+    // each x offset of `cubes`.
+    let load_parts = |name: &str, cubes: &[f32]| {
+        let (cube, cidx) = seamed_cube(6);
+        let (mut positions, mut indices) = seamed_cube(5);
+        for &dx in cubes {
+            let base = positions.len() as u16;
+            positions.extend(cube.iter().map(|v| [v[0] + dx, v[1], v[2]]));
+            indices.extend(cidx.iter().map(|i| i + base));
+        }
+        let mut d = Doc::new();
+        let p = d.positions(&positions);
+        let i = d.indices_u16(&indices);
+        d.mesh(name, json!({"attributes": {"POSITION": p}, "indices": i}));
+        d.nodes(json!([{"mesh": 0}]), &[0]);
+        load_ok(&d.glb())
     };
-    // Open box first, then a cube at x + 2 and one at x + 4.
-    let mut positions = open.clone();
-    let mut indices = oidx.clone();
-    for dx in [2.0, 4.0] {
-        let base = positions.len() as u16;
-        positions.extend(shift(&cube, dx));
-        indices.extend(cidx.iter().map(|i| i + base));
-    }
-    let p = d.positions(&positions);
-    let i = d.indices_u16(&indices);
-    d.mesh(
-        "parts",
-        json!({"attributes": {"POSITION": p}, "indices": i}),
-    );
-    d.nodes(json!([{"mesh": 0}]), &[0]);
-    let s = load_ok(&d.glb());
+    let s = load_parts("parts", &[2.0, 4.0]);
     let names: Vec<&str> = s.meshes.iter().map(|m| m.name.as_str()).collect();
     assert_eq!(
         names,
@@ -504,20 +500,7 @@ fn closed_parts_of_an_open_primitive_cast_as_closed_meshes() {
     }
     // A cube that shares a corner position with the box joins its part:
     // that part is open, so nothing splits.
-    let mut d = Doc::new();
-    let mut positions = open.clone();
-    let mut indices = oidx.clone();
-    let base = positions.len() as u16;
-    positions.extend(shift(&cube, 1.0));
-    indices.extend(cidx.iter().map(|i| i + base));
-    let p = d.positions(&positions);
-    let i = d.indices_u16(&indices);
-    d.mesh(
-        "joined",
-        json!({"attributes": {"POSITION": p}, "indices": i}),
-    );
-    d.nodes(json!([{"mesh": 0}]), &[0]);
-    let s = load_ok(&d.glb());
+    let s = load_parts("joined", &[1.0]);
     assert_eq!(s.meshes.len(), 1);
     assert!(!s.meshes[0].closed);
     assert_eq!(s.meshes[0].indices.len(), 22);

@@ -84,8 +84,9 @@ impl PassClock {
         Ok(out)
     }
 
-    /// The passes of this run so far, in order (after their submissions
-    /// were waited for).
+    /// The passes of this run so far (after their submissions were waited
+    /// for): in order with the wall clock; with timestamps, the passes done
+    /// on the host first, then the GPU's in order.
     pub fn results(&self) -> Result<Vec<PassTiming>> {
         match &self.walls {
             Some(w) => Ok(w.clone()),

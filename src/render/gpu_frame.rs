@@ -234,8 +234,10 @@ impl Engine {
         let light = &desc.lights[k];
         let (lv, soft, texels) = frame_light(desc, k)?;
         self.shadows.set_clusters(desc.shadows.clusters);
-        // The masks are read back only for a textured light's colours.
-        self.shadows.set_read_masks(light.sample_colors().is_some());
+        // A textured light's sample colours; the masks are read back only
+        // for them.
+        let colors = light.sample_colors();
+        self.shadows.set_read_masks(colors.is_some());
         let t = Instant::now();
         let view_buf = self.view.samples();
         let tri_buf = self.triangles.buffer();
@@ -268,7 +270,7 @@ impl Engine {
         };
         // A textured light: each channel's visible share of the emission,
         // a weighted count of the visible samples' bits.
-        let visibility_rgb = match (&out.soft, light.sample_colors()) {
+        let visibility_rgb = match (&out.soft, colors) {
             (Some(so), Some(colors)) => Some(mask_channel_visibility(
                 &colors,
                 &so.visible,

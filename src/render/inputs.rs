@@ -116,9 +116,14 @@ pub fn user_gpu_triangles(
 ) -> Vec<([Vec3; 3], bool)> {
     let mut triangles = gpu_triangles(scene, eye);
     let opened = closed_meshes_seen_from_inside(scene, samples);
-    let meshes = scene.triangles();
-    for (t, m) in triangles.iter_mut().zip(&meshes) {
-        t.1 &= !opened[m.mesh as usize];
+    // Triangles are in mesh order: each mesh's run, in turn.
+    let mut rest = triangles.as_mut_slice();
+    for (m, &open) in scene.meshes.iter().zip(&opened) {
+        let (own, after) = rest.split_at_mut(m.indices.len());
+        if open {
+            own.iter_mut().for_each(|t| t.1 = false);
+        }
+        rest = after;
     }
     triangles
 }
