@@ -69,7 +69,15 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 // which went on to the look-ups or the per-light-sample tests (the rest of
 // the tests were rejected by an edge's plane).
 #define COUNTER_PAST_SPHERE 16
-#define COUNTER_COUNT 17
+// Exact soft occlusion, 64-bit sums in two words each: light-sample groups
+// (soft_common.glsl, LIGHT_GROUP_SIZE) whose samples were tested one by
+// one, and groups wholly blocked without a per-sample test (the rest were
+// wholly outside one of the pair's planes).
+#define COUNTER_GROUPS_TESTED_LO 17
+#define COUNTER_GROUPS_TESTED_HI 18
+#define COUNTER_GROUPS_EVERY_LO 19
+#define COUNTER_GROUPS_EVERY_HI 20
+#define COUNTER_COUNT 21
 
 // Frame-wide parameters (push constants).
 struct LightPush {

@@ -24,8 +24,21 @@
 // normalized (plane_lut_build); a shader that reads them so defines
 // LIGHT_SAMPLES_BINDING before including this file (one that reads them at
 // a per-lane index binds a texel buffer of its own instead).
+// Exact mode's occlusion also reads, after the samples, a sphere around
+// each group of LIGHT_GROUP_SIZE consecutive samples (xyz centre, w
+// radius; a group never spans two blocks), built by
+// gpu::soft_light::light_groups.
+#define LIGHT_GROUP_SIZE 16u
+#define LIGHT_GROUPS_PER_BLOCK (128u / LIGHT_GROUP_SIZE)
 #ifdef LIGHT_SAMPLES_BINDING
+#ifdef LIGHT_GROUPS
+layout(set = 0, binding = LIGHT_SAMPLES_BINDING, std140) uniform LightSamples {
+    vec4 light_samples[MAX_LIGHT_SAMPLES];
+    vec4 light_groups[MAX_LIGHT_SAMPLES / LIGHT_GROUP_SIZE];
+};
+#else
 layout(set = 0, binding = LIGHT_SAMPLES_BINDING, std140) uniform LightSamples { vec4 light_samples[MAX_LIGHT_SAMPLES]; };
+#endif
 #endif
 
 uint light_blocks() { return (pc.soft.y + 127u) / 128u; }

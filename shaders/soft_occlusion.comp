@@ -8,7 +8,8 @@
 // sphere (no look-up: a plane that leaves the whole sphere outside means T
 // blocks nothing); then each plane's bits are looked up in the LUT, every
 // 128-sample block with the same index (LUT mode, all blocks in one pass),
-// or every light sample of one block is tested (EXACT, one pass per block),
+// or the light samples of one block are tested (EXACT, one pass per block;
+// by groups of 16, each group first as a sphere against the four planes),
 // or (SURE, the default mode: the masks of EXACT, all blocks in one pass)
 // the table bounds each plane's bits from both sides and only the bits it
 // leaves unsure are tested as EXACT tests them (see SURE_BLOCK).
@@ -22,6 +23,7 @@
 #extension GL_KHR_shader_subgroup_ballot : require
 #extension GL_KHR_shader_subgroup_shuffle : require
 #define LIGHT_SAMPLES_BINDING 10
+#define LIGHT_GROUPS
 #include "soft_common.glsl"
 #include "clusters_common.glsl"
 #include "alpha_common.glsl"
@@ -109,6 +111,9 @@ layout(set = 0, binding = 11) uniform usamplerBuffer lut_tb;         // LUT, all
 // each unit's number of entries (the host plans its ranges by them).
 layout(set = 0, binding = 12) writeonly buffer UnsureList { uvec4 unsure_list[]; };
 layout(set = 0, binding = 19) buffer UnsureCounts { uint unsure_counts[]; };
+// The light samples again (binding 10's buffer), for reads at a per-lane
+// index (exact mode's groups): a gather from a texel buffer.
+layout(set = 0, binding = 20) uniform samplerBuffer light_samples_tb;
 // Per tile: its view-sample box (clusters_bounds.comp; lo.w = 0: no box,
 // and then no chunk culling either: the clusters are off or the tile too big).
 layout(set = 0, binding = 13) uniform usamplerBuffer boxes_tb;
@@ -432,6 +437,9 @@ void main() {
     uint s = un.slot;
     uvec2 texel = un.texel;
     uint tests = 0u, blocking = 0u, unsure_bits = 0u, listed = 0u, past_sphere = 0u;
+    // Exact mode: light-sample groups tested sample by sample, and groups
+    // wholly blocked without a per-sample test.
+    uint groups_tested = 0u, groups_every = 0u;
     uint words = light_blocks() * 4u;
     // LUT mode: every block in this pass; exact: block pc.soft.x only.
     uint first_block = EXACT != 0 ? pc.soft.x : 0u;
@@ -458,12 +466,19 @@ void main() {
         // the distance in light radii), so that it never drops a light
         // sample that the per-sample test would block.
         float lo_x = EXACT_MASKS ? -1.0 - 1e-5 * (1.0 + length(ox) * inv_r) : -1.0;
-#if SURE
-        // This unit's segment of the unsure list (by its index in the dispatch).
-        uint segment = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) % UNSURE_SEGMENTS;
+#if EXACT_MASKS
         // The rounding bound of the per-sample test against the planes
         // through x, in light radii: 64 f32 ulps of the magnitudes involved.
         float delta_x = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(x) + length(ox)) * inv_r;
+#endif
+#if SURE
+        // This unit's segment of the unsure list (by its index in the dispatch).
+        uint segment = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) % UNSURE_SEGMENTS;
+#endif
+#if EXACT
+        // Exact mode's group rules hold beyond twice the per-sample test's
+        // rounding bound and the whole-light rejection's allowance.
+        float margin_x = 2.0 * (delta_x + 1e-5 * (1.0 + length(ox) * inv_r));
 #endif
         FOR_BLOCKS(ACC_BLOCK)
         // Per window (PAIR_WINDOW, shadow_common.glsl): the cheap rules of
@@ -548,21 +563,60 @@ void main() {
                 uint c2 = plane_code(p.u1, p.d2), c3 = plane_code(p.u2, p.d3);
                 FOR_BLOCKS(LUT_BLOCK)
 #else
-                // Every light sample of the block against the four planes.
+                // The block's light samples by groups (LIGHT_GROUP_SIZE
+                // consecutive samples; light.rs orders them in Z-order, so a
+                // group is compact): a group whose sphere lies outside one of
+                // the four planes by more than the margin has no sample
+                // blocked, one inside all four has every sample blocked (not
+                // with alpha tests: the crossings' opacity decides), and only
+                // the samples of the others are tested, each lane looping over
+                // its own groups. The margins hold the per-sample test's
+                // rounding and that of the group's own distances, so the
+                // masks are those of testing every sample (the twin does).
                 uint base = first_block * 128u;
                 uint n_block = min(pc.soft.y - min(base, pc.soft.y), 128u);
+                uint n_groups = (n_block + LIGHT_GROUP_SIZE - 1u) / LIGHT_GROUP_SIZE;
+                float delta_a = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(p.a) + length(p.a - o)) * inv_r;
+                float margin_a = 2.0 * (delta_a + 1e-5 * (1.0 + length(p.a - o) * inv_r));
                 uvec4 bits = uvec4(0u);
-                for (uint jl = 0u; jl < n_block; jl++) {
-                    vec3 l = light_samples[base + jl].xyz;
-                    bool blocked = exact_blocks(l, p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
-                    if (ALPHA != 0u && blocked) {
-                        vec2 bc = segment_barycentrics(x, l - x, p.a, p.b, p.c);
-                        blocked = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, p.alpha_record, bc);
+                uint candidates = 0u;
+                for (uint g = 0u; g < n_groups; g++) {
+                    vec4 sphere = light_groups[first_block * LIGHT_GROUPS_PER_BLOCK + g];
+                    vec3 gy = (sphere.xyz - o) * inv_r;
+                    float rho = sphere.w * inv_r;
+                    // Each plane's distance of the group's centre past it
+                    // (behind: below zero), in light radii.
+                    float t0 = dot(p.ns, gy) - p.d0, t1 = dot(p.u0, gy) - p.d1;
+                    float t2 = dot(p.u1, gy) - p.d2, t3 = dot(p.u2, gy) - p.d3;
+                    float ra = rho + margin_a, rx = rho + margin_x;
+                    bool none = t0 >= ra || t1 >= rx || t2 >= rx || t3 >= rx;
+                    bool every = ALPHA == 0u && t0 < -ra && t1 < -rx && t2 < -rx && t3 < -rx;
+                    uint first = g * LIGHT_GROUP_SIZE;
+                    uint group_bits = every ? (existing_samples(base + first) & (0xffffffffu >> (32u - LIGHT_GROUP_SIZE))) << (first & 31u) : 0u;
+                    uint wd = first >> 5u;
+                    bits |= uvec4(wd == 0u ? group_bits : 0u, wd == 1u ? group_bits : 0u,
+                                  wd == 2u ? group_bits : 0u, wd == 3u ? group_bits : 0u);
+                    candidates |= none || every ? 0u : 1u << g;
+                    groups_every += every ? 1u : 0u;
+                }
+                groups_tested += uint(bitCount(candidates));
+                while (candidates != 0u) {
+                    uint g = uint(findLSB(candidates));
+                    candidates &= candidates - 1u;
+                    uint first = g * LIGHT_GROUP_SIZE;
+                    uint group_bits = 0u;
+                    for (uint jl = first; jl < min(first + LIGHT_GROUP_SIZE, n_block); jl++) {
+                        vec3 l = texelFetch(light_samples_tb, int(base + jl)).xyz;
+                        bool blocked = exact_blocks(l, p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
+                        if (ALPHA != 0u && blocked) {
+                            vec2 bc = segment_barycentrics(x, l - x, p.a, p.b, p.c);
+                            blocked = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, p.alpha_record, bc);
+                        }
+                        group_bits |= blocked ? 1u << (jl & 31u) : 0u;
                     }
-                    if (blocked) {
-                        uint wd = jl >> 5u, bit = 1u << (jl & 31u);
-                        bits |= uvec4(wd == 0u ? bit : 0u, wd == 1u ? bit : 0u, wd == 2u ? bit : 0u, wd == 3u ? bit : 0u);
-                    }
+                    uint wd = first >> 5u;
+                    bits |= uvec4(wd == 0u ? group_bits : 0u, wd == 1u ? group_bits : 0u,
+                                  wd == 2u ? group_bits : 0u, wd == 3u ? group_bits : 0u);
                 }
                 acc0 |= bits;
                 hit = bits != uvec4(0u);
@@ -610,4 +664,18 @@ void main() {
             atomicAdd(counters[COUNTER_UNSURE_HI], 1u);
         }
     }
+#if EXACT
+    uint sum_groups_tested = subgroupAdd(groups_tested);
+    uint sum_groups_every = subgroupAdd(groups_every);
+    if (subgroupElect() && (sum_groups_tested | sum_groups_every) != 0u) {
+        uint before = atomicAdd(counters[COUNTER_GROUPS_TESTED_LO], sum_groups_tested);
+        if (before + sum_groups_tested < before) {
+            atomicAdd(counters[COUNTER_GROUPS_TESTED_HI], 1u);
+        }
+        before = atomicAdd(counters[COUNTER_GROUPS_EVERY_LO], sum_groups_every);
+        if (before + sum_groups_every < before) {
+            atomicAdd(counters[COUNTER_GROUPS_EVERY_HI], 1u);
+        }
+    }
+#endif
 }

@@ -137,6 +137,17 @@ pub struct SoftStats {
     /// faster; fewer when the list's buffer is smaller).
     #[serde(default)]
     pub unsure_ranges: u32,
+    /// Exact mode: (test, group of 16 light samples) pairs whose samples
+    /// were tested one by one. A test past the bounding-sphere tests first
+    /// tests its four planes against a sphere around each group; the
+    /// groups neither counted here nor in `light_groups_every` lay wholly
+    /// outside one of the planes and needed no per-sample test.
+    #[serde(default)]
+    pub light_groups_tested: u64,
+    /// Exact mode: (test, group) pairs whose group lay wholly inside all
+    /// four planes: every sample blocked without a per-sample test.
+    #[serde(default)]
+    pub light_groups_every: u64,
 }
 
 impl ShadowStats {
@@ -165,7 +176,8 @@ impl ShadowStats {
             ms.insert(t.name.clone(), v);
         }
         let texels = (faces as f64 * (resolution as f64).powi(2)).max(1.0);
-        let unsure = c[counter::UNSURE_LO] as u64 | (c[counter::UNSURE_HI] as u64) << 32;
+        let wide = |lo: usize, hi: usize| c[lo] as u64 | (c[hi] as u64) << 32;
+        let unsure = wide(counter::UNSURE_LO, counter::UNSURE_HI);
         ShadowStats {
             light_texels: resolution,
             light_faces: faces,
@@ -209,6 +221,8 @@ impl ShadowStats {
                     / (c[counter::TESTS] as f64 * sl.samples.len() as f64).max(1.0),
                 unsure_entries: out.soft.as_ref().map_or(0, |s| s.unsure_entries),
                 unsure_ranges: out.soft.as_ref().map_or(0, |s| s.unsure_ranges),
+                light_groups_tested: wide(counter::GROUPS_TESTED_LO, counter::GROUPS_TESTED_HI),
+                light_groups_every: wide(counter::GROUPS_EVERY_LO, counter::GROUPS_EVERY_HI),
             }),
         }
     }

@@ -199,9 +199,20 @@ pub mod counter {
     /// planes, which went on to the look-ups or the per-light-sample tests
     /// (the other tests were rejected by an edge's plane).
     pub const PAST_SPHERE: usize = 16;
+    /// Exact soft occlusion: light-sample groups (`LIGHT_GROUP_SIZE`
+    /// samples) whose samples were tested one by one, low word of a 64-bit
+    /// sum.
+    pub const GROUPS_TESTED_LO: usize = 17;
+    /// High word of [`GROUPS_TESTED_LO`].
+    pub const GROUPS_TESTED_HI: usize = 18;
+    /// Exact soft occlusion: light-sample groups wholly blocked by a pair
+    /// without a per-sample test, low word of a 64-bit sum.
+    pub const GROUPS_EVERY_LO: usize = 19;
+    /// High word of [`GROUPS_EVERY_LO`].
+    pub const GROUPS_EVERY_HI: usize = 20;
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.
-    pub const COUNT: usize = 17;
+    pub const COUNT: usize = 21;
 }
 
 /// `LightPush`: push constants of every shadow pass of a light, hard and soft.
@@ -282,3 +293,56 @@ const _: () = assert!(std::mem::size_of::<LightPush>() == 128);
 const _: () = assert!(std::mem::size_of::<GpuLightFace>() == 128);
 const _: () = assert!(std::mem::size_of::<GpuCasterPlanes>() == 80);
 const _: () = assert!(std::mem::size_of::<GpuCasterFace>() == 64);
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::counter;
+
+    /// The value of `#define NAME VALUE` in `source` (a trailing `u` dropped).
+    pub(crate) fn glsl_define(source: &str, name: &str) -> Option<u64> {
+        source.lines().find_map(|line| {
+            let mut words = line.split_whitespace();
+            (words.next() == Some("#define") && words.next() == Some(name))
+                .then(|| words.next()?.trim_end_matches('u').parse().ok())
+                .flatten()
+        })
+    }
+
+    #[test]
+    fn counter_slots_match_the_shaders() {
+        let glsl = include_str!("../../shaders/shadow_common.glsl");
+        for (name, slot) in [
+            ("PAIRS", counter::PAIRS),
+            ("DEGENERATE", counter::DEGENERATE),
+            ("FRONT_FACING_CLOSED", counter::FRONT_FACING_CLOSED),
+            ("CULLED", counter::CULLED),
+            ("RASTERIZED", counter::RASTERIZED),
+            ("TEXELS_VISITED", counter::TEXELS_VISITED),
+            ("TESTS", counter::TESTS),
+            ("CLIP_ITEMS", counter::CLIP_ITEMS),
+            ("BLOCKING", counter::BLOCKING),
+            ("UNSURE_LO", counter::UNSURE_LO),
+            ("UNSURE_HI", counter::UNSURE_HI),
+            ("PLANE_REJECTED", counter::PLANE_REJECTED),
+            ("CLUSTER_LIGHT_SIDE", counter::CLUSTER_LIGHT_SIDE),
+            ("CLUSTER_BEHIND_CLOSED", counter::CLUSTER_BEHIND_CLOSED),
+            ("CLUSTER_CHUNK", counter::CLUSTER_CHUNK),
+            (
+                "CLUSTER_OUTSIDE_PENUMBRA",
+                counter::CLUSTER_OUTSIDE_PENUMBRA,
+            ),
+            ("PAST_SPHERE", counter::PAST_SPHERE),
+            ("GROUPS_TESTED_LO", counter::GROUPS_TESTED_LO),
+            ("GROUPS_TESTED_HI", counter::GROUPS_TESTED_HI),
+            ("GROUPS_EVERY_LO", counter::GROUPS_EVERY_LO),
+            ("GROUPS_EVERY_HI", counter::GROUPS_EVERY_HI),
+            ("COUNT", counter::COUNT),
+        ] {
+            assert_eq!(
+                glsl_define(glsl, &format!("COUNTER_{name}")),
+                Some(slot as u64),
+                "COUNTER_{name}"
+            );
+        }
+    }
+}

@@ -6,6 +6,39 @@ pub use crate::scene::file::SoftMode;
 /// Maximum number of light samples (`MAX_LIGHT_SAMPLES` in soft_common.glsl).
 pub const MAX_SOFT_SAMPLES: usize = 1024;
 
+/// Light samples per group of exact mode's occlusion (`LIGHT_GROUP_SIZE`
+/// in soft_common.glsl): 128 is a whole number of groups, so a group never
+/// spans two blocks.
+pub const LIGHT_GROUP_SIZE: usize = 16;
+
+/// Per group of [`LIGHT_GROUP_SIZE`] consecutive samples, a sphere that
+/// holds them: centre xyz, radius w, every sample's distance from the
+/// centre (as f32 vectors, measured in f64) at most the radius. Exact
+/// mode's occlusion tests a caster's planes against it before testing the
+/// group's samples one by one.
+pub fn light_groups(samples: &[glam::Vec3]) -> Vec<[f32; 4]> {
+    samples
+        .chunks(LIGHT_GROUP_SIZE)
+        .map(|group| {
+            let sum = group
+                .iter()
+                .fold(glam::DVec3::ZERO, |a, s| a + s.as_dvec3());
+            let centre = (sum / group.len() as f64).as_vec3();
+            let c = centre.as_dvec3();
+            let r = group
+                .iter()
+                .map(|s| s.as_dvec3().distance(c))
+                .fold(0.0f64, f64::max);
+            // Rounded up to an f32 no smaller than r.
+            let mut radius = (r * (1.0 + 1e-6)) as f32;
+            while (radius as f64) < r {
+                radius = f32::from_bits(radius.to_bits() + 1);
+            }
+            [centre.x, centre.y, centre.z, radius]
+        })
+        .collect()
+}
+
 /// A light with extent as the soft-shadow passes see it.
 #[derive(Clone, Debug)]
 pub struct SoftLight {
@@ -139,5 +172,31 @@ impl SoftLight {
             )));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn group_size_and_sample_limit_match_the_shaders() {
+        let glsl = include_str!("../../shaders/soft_common.glsl");
+        let define = |name: &str| crate::gpu::shared::tests::glsl_define(glsl, name);
+        assert_eq!(
+            define("LIGHT_GROUP_SIZE"),
+            Some(super::LIGHT_GROUP_SIZE as u64)
+        );
+        assert_eq!(
+            define("MAX_LIGHT_SAMPLES"),
+            Some(super::MAX_SOFT_SAMPLES as u64)
+        );
+        assert_eq!(
+            128 % super::LIGHT_GROUP_SIZE,
+            0,
+            "a group never spans two blocks"
+        );
+        assert!(
+            super::LIGHT_GROUP_SIZE <= 32,
+            "a group's bits lie in one word"
+        );
     }
 }

@@ -16,7 +16,9 @@ use crate::gpu::light_frame::LightFrame;
 use crate::gpu::light_frame::{CasterRound, Recording, UNITS_INDIRECT};
 use crate::gpu::shaders;
 use crate::gpu::shared::{counter, LightPush};
-use crate::gpu::soft_light::{SoftLight, SoftMode, MAX_SOFT_SAMPLES};
+use crate::gpu::soft_light::{
+    light_groups, SoftLight, SoftMode, LIGHT_GROUP_SIZE, MAX_SOFT_SAMPLES,
+};
 use crate::gpu::tile_bin::{LOOKUP_PAIR_CHUNK, SOFT_PAIR_CHUNK};
 use crate::gpu::{casters::CasterPass, texel_lists::TexelListPass, tile_bin::TileBinPass};
 use crate::vulkan::{
@@ -246,7 +248,9 @@ impl SoftOcclusionPass {
         self.unsure_listed = (0, 0);
         self.blocked
             .get(ctx, 4 * frame.mask_words * frame.n as u64)?;
-        self.light_samples.get(ctx, 16 * MAX_SOFT_SAMPLES as u64)?;
+        let groups = MAX_SOFT_SAMPLES / LIGHT_GROUP_SIZE;
+        self.light_samples
+            .get(ctx, 16 * (MAX_SOFT_SAMPLES + groups) as u64)?;
         self.pixel_rotation.get(ctx, 16 * (3 + 128))?;
         self.no_table.get(ctx, 16)?;
         self.counters_before.get(ctx, 4 * counter::COUNT as u64)?;
@@ -550,6 +554,7 @@ impl SoftOcclusionPass {
                 Binding::uniform_texel(&lists.list_sample_index, vk::Format::R32_UINT),
                 Binding::uniform(&self.pixel_rotation),
                 storage(&self.unsure_counts),
+                Binding::uniform_texel(&self.light_samples, vk::Format::R32G32B32A32_SFLOAT),
             ];
             let push = bytemuck::bytes_of(&push);
             if len == UNITS_INDIRECT {
@@ -621,7 +626,7 @@ fn occlusion_pipeline(
         name,
         spirv,
         bindings: &[
-            tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb, tb, tb, tb, tb, tb, ub, sb,
+            tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb, tb, tb, tb, tb, tb, ub, sb, tb,
         ],
         push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
         specialization: &[chunk, (5, alpha as u32), (6, rotated as u32)],
@@ -669,8 +674,13 @@ fn not_made() -> crate::Error {
 
 /// The light samples (`vec4` each) and the per-pixel rotation block of `sl`,
 /// as the occlusion passes' uniform buffers hold them.
+/// The `LightSamples` uniform block of the occlusion pass for `sl` (the
+/// samples, then from sample [`MAX_SOFT_SAMPLES`] on their groups'
+/// spheres, [`light_groups`]) and its per-pixel rotation block.
 fn light_words(sl: &SoftLight) -> (Vec<[f32; 4]>, Vec<[u32; 4]>) {
-    let samples = sl.samples.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect();
+    let mut samples: Vec<[f32; 4]> = sl.samples.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect();
+    samples.resize(MAX_SOFT_SAMPLES, [0.0; 4]);
+    samples.extend(light_groups(&sl.samples));
     (samples, pixel_rotation_block(sl))
 }
 
