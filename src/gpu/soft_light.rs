@@ -10,6 +10,8 @@ pub const MAX_SOFT_SAMPLES: usize = 1024;
 /// in soft_common.glsl): 128 is a whole number of groups, so a group never
 /// spans two blocks.
 pub const LIGHT_GROUP_SIZE: usize = 16;
+// A group never spans two blocks, and its bits lie in one word.
+const _: () = assert!(128 % LIGHT_GROUP_SIZE == 0 && LIGHT_GROUP_SIZE <= 32);
 
 /// Per group of [`LIGHT_GROUP_SIZE`] consecutive samples, a sphere that
 /// holds them: centre xyz, radius w, every sample's distance from the
@@ -188,15 +190,6 @@ mod tests {
         assert_eq!(
             define("MAX_LIGHT_SAMPLES"),
             Some(super::MAX_SOFT_SAMPLES as u64)
-        );
-        assert_eq!(
-            128 % super::LIGHT_GROUP_SIZE,
-            0,
-            "a group never spans two blocks"
-        );
-        assert!(
-            super::LIGHT_GROUP_SIZE <= 32,
-            "a group's bits lie in one word"
         );
     }
 }
