@@ -12,6 +12,7 @@
 use crate::cpu::light_view::LightView;
 use crate::gpu::light_frame::LightInputs;
 use crate::gpu::light_passes::{LightPasses, Ran, ShadowOutput};
+use crate::gpu::shared::counter;
 use crate::gpu::soft_light::{SampleRotation, SoftLight};
 use crate::vulkan::{Barrier, BufferSlice, GpuContext, GrowBuffer};
 use crate::{Error, Result};
@@ -227,9 +228,7 @@ fn copy_range<'a>(
 /// summed, list lengths of the batch with the longest list).
 fn concatenate(mut acc: ShadowOutput, o: ShadowOutput) -> ShadowOutput {
     acc.lit.extend(o.lit);
-    for (a, b) in acc.counters.iter_mut().zip(o.counters) {
-        *a = a.saturating_add(b);
-    }
+    counter::add(&mut acc.counters, &o.counters);
     let longest = |l: &[u32]| l.iter().copied().max().unwrap_or(0);
     if longest(&o.list_lengths) > longest(&acc.list_lengths) {
         acc.list_lengths = o.list_lengths;
@@ -256,9 +255,7 @@ fn intersect(mut acc: ShadowOutput, o: ShadowOutput, soft: Option<&SoftLight>) -
             _ => None,
         };
     }
-    for (a, b) in acc.counters.iter_mut().zip(o.counters) {
-        *a = a.saturating_add(b);
-    }
+    counter::add(&mut acc.counters, &o.counters);
     acc.timings.extend(o.timings);
     acc.buffer_bytes = acc.buffer_bytes.max(o.buffer_bytes);
     acc.allocations = acc.allocations + o.allocations;

@@ -174,9 +174,7 @@ impl LightPasses {
         r.submit()?;
         ctx.check_validation()?;
         let mut out = self.read_output(ctx, &frame, inputs, soft, lut_built)?;
-        for (c, k) in out.counters.iter_mut().zip(carried) {
-            *c = c.saturating_add(k);
-        }
+        counter::add(&mut out.counters, &carried);
         out.allocations = ctx.allocations() - before;
         Ok(Ran::Done(Box::new(out)))
     }
@@ -542,9 +540,9 @@ fn carry_counters(
     let c: Vec<u32> = r
         .ctx
         .read_buffer_staged(counters.buffer(), 0, counter::COUNT)?;
-    for (k, v) in carried.iter_mut().zip(c) {
-        *k = k.saturating_add(v);
-    }
+    let mut round = [0u32; counter::COUNT];
+    round.copy_from_slice(&c);
+    counter::add(carried, &round);
     r.cmd.fill_buffer(counters.slice(), 0)?;
     r.cmd.barrier(Barrier::TransferToCompute);
     Ok(())

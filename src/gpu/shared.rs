@@ -213,6 +213,30 @@ pub mod counter {
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.
     pub const COUNT: usize = 21;
+
+    /// The (low, high) slot pairs that hold 64-bit sums.
+    pub const WIDE: [(usize, usize); 3] = [
+        (UNSURE_LO, UNSURE_HI),
+        (GROUPS_TESTED_LO, GROUPS_TESTED_HI),
+        (GROUPS_EVERY_LO, GROUPS_EVERY_HI),
+    ];
+
+    /// Adds the counters `other` (of another round, batch or run) to
+    /// `acc`: the [`WIDE`] pairs as 64-bit sums, every other slot
+    /// saturating at `u32::MAX`.
+    pub fn add(acc: &mut [u32; COUNT], other: &[u32; COUNT]) {
+        let mut sum = *acc;
+        for (a, b) in sum.iter_mut().zip(other) {
+            *a = a.saturating_add(*b);
+        }
+        for (lo, hi) in WIDE {
+            let wide = |c: &[u32; COUNT]| c[lo] as u64 | (c[hi] as u64) << 32;
+            let total = wide(acc).saturating_add(wide(other));
+            sum[lo] = total as u32;
+            sum[hi] = (total >> 32) as u32;
+        }
+        *acc = sum;
+    }
 }
 
 /// `LightPush`: push constants of every shadow pass of a light, hard and soft.
@@ -306,6 +330,25 @@ pub(crate) mod tests {
                 .then(|| words.next()?.trim_end_matches('u').parse().ok())
                 .flatten()
         })
+    }
+
+    #[test]
+    fn wide_counters_carry_when_added() {
+        let mut a = [0u32; counter::COUNT];
+        let mut b = [0u32; counter::COUNT];
+        a[counter::UNSURE_LO] = u32::MAX;
+        b[counter::UNSURE_LO] = 2;
+        a[counter::GROUPS_TESTED_HI] = 3;
+        b[counter::GROUPS_TESTED_LO] = 5;
+        a[counter::TESTS] = u32::MAX - 1;
+        b[counter::TESTS] = 7;
+        counter::add(&mut a, &b);
+        assert_eq!((a[counter::UNSURE_LO], a[counter::UNSURE_HI]), (1, 1));
+        assert_eq!(
+            (a[counter::GROUPS_TESTED_LO], a[counter::GROUPS_TESTED_HI]),
+            (5, 3)
+        );
+        assert_eq!(a[counter::TESTS], u32::MAX, "narrow counters saturate");
     }
 
     #[test]
