@@ -573,6 +573,10 @@ void main() {
                 // its own groups. The margins hold the per-sample test's
                 // rounding and that of the group's own distances, so the
                 // masks are those of testing every sample (the twin does).
+                // Loop iterations per pair: at most 8 + 8 + 128 (groups,
+                // candidate groups, their samples), so a unit of
+                // SOFT_PAIR_CHUNK = 256 pairs stays within lavapipe's 65535
+                // per invocation (shadow_common.glsl) at about 37 K.
                 uint base = first_block * 128u;
                 uint n_block = min(pc.soft.y - min(base, pc.soft.y), 128u);
                 uint n_groups = (n_block + LIGHT_GROUP_SIZE - 1u) / LIGHT_GROUP_SIZE;

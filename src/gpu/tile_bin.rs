@@ -27,9 +27,10 @@ use crate::Result;
 
 /// Pairs per soft occlusion work unit in exact mode (specialization
 /// constant 2, `OCC_PAIR_CHUNK`): each lane has one sample, and each test
-/// loops over 128 light samples, so 256 · 130 (a loop over each window of
-/// pairs, then 128 for each pair that passes) stays below lavapipe's 65535
-/// loop iterations per invocation.
+/// loops over at most 144 iterations (8 light-sample groups, up to 8 of
+/// them tested, 16 samples each), so 256 · 146 (with the loops over each
+/// window of pairs) stays below lavapipe's 65535 loop iterations per
+/// invocation.
 pub const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
 
 /// Pairs per soft occlusion work unit in look-up and approximate modes (any
