@@ -159,6 +159,12 @@ uvec4 lut_bits(uint code, uint block) {
         : (code == LUT_NONE ? uvec4(0u) : texelFetch(lut_tb, int(code * uint(BLOCKS) + block)));
 }
 
+// `bits` as word `wd` of a block's four (a select, not an indexed write:
+// lavapipe keeps locals in registers).
+uvec4 in_word(uint wd, uint bits) {
+    return uvec4(wd == 0u ? bits : 0u, wd == 1u ? bits : 0u, wd == 2u ? bits : 0u, wd == 3u ? bits : 0u);
+}
+
 uint bit_count(uvec4 v) {
     return uint(bitCount(v.x) + bitCount(v.y) + bitCount(v.z) + bitCount(v.w));
 }
@@ -597,9 +603,7 @@ void main() {
                     bool every = ALPHA == 0u && t0 < -ra && t1 < -rx && t2 < -rx && t3 < -rx;
                     uint first = g * LIGHT_GROUP_SIZE;
                     uint group_bits = every ? (existing_samples(base + first) & (0xffffffffu >> (32u - LIGHT_GROUP_SIZE))) << (first & 31u) : 0u;
-                    uint wd = first >> 5u;
-                    bits |= uvec4(wd == 0u ? group_bits : 0u, wd == 1u ? group_bits : 0u,
-                                  wd == 2u ? group_bits : 0u, wd == 3u ? group_bits : 0u);
+                    bits |= in_word(first >> 5u, group_bits);
                     candidates |= none || every ? 0u : 1u << g;
                     groups_every += every ? 1u : 0u;
                 }
@@ -618,9 +622,7 @@ void main() {
                         }
                         group_bits |= blocked ? 1u << (jl & 31u) : 0u;
                     }
-                    uint wd = first >> 5u;
-                    bits |= uvec4(wd == 0u ? group_bits : 0u, wd == 1u ? group_bits : 0u,
-                                  wd == 2u ? group_bits : 0u, wd == 3u ? group_bits : 0u);
+                    bits |= in_word(first >> 5u, group_bits);
                 }
                 acc0 |= bits;
                 hit = bits != uvec4(0u);
