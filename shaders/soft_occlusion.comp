@@ -148,6 +148,19 @@ uint plane_code(vec3 u, float d) {
 // 64 f32 ulps: the rounding bound of a per-sample test, per unit of the
 // magnitudes it involves.
 #define ROUNDING_BOUND (64.0 * 1.1920929e-7)
+// That bound for the per-sample test against planes through point q (the
+// view sample, or a caster's vertex), in light radii (o the light's
+// centre).
+float rounding_bound(vec3 q, vec3 o, float inv_r) {
+    return ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(q) + length(q - o)) * inv_r;
+}
+// Exact mode's allowance past the bounding sphere for a plane through a
+// point at `v` from the light's centre (1e-5 of the distance, in light
+// radii): beyond it a plane rejects no light sample that the per-sample
+// test would block.
+float sphere_allowance(vec3 v, float inv_r) {
+    return 1e-5 * (1.0 + length(v) * inv_r);
+}
 uint bound_flags(float d) {
     return (d >= 1.0 ? BOUND_MAYBE_ALL : 0u)
         | (d >= 1.0 + pc.soft_light.w + 1e-6 ? BOUND_SURE_ALL : 0u)
@@ -163,6 +176,15 @@ uvec4 lut_bits(uint code, uint block) {
 // lavapipe keeps locals in registers).
 uvec4 in_word(uint wd, uint bits) {
     return uvec4(wd == 0u ? bits : 0u, wd == 1u ? bits : 0u, wd == 2u ? bits : 0u, wd == 3u ? bits : 0u);
+}
+
+// Adds `value` to the 64-bit counter whose low word is slot `lo` and high
+// word slot `lo + 1` (the carry of the low word).
+void count_wide(uint lo, uint value) {
+    uint before = atomicAdd(counters[lo], value);
+    if (before + value < before) {
+        atomicAdd(counters[lo + 1u], 1u);
+    }
 }
 
 uint bit_count(uvec4 v) {
@@ -412,7 +434,7 @@ uint pair_planes_of(PairTexels f, uvec2 texel, uint own, vec3 x, vec3 o, float i
     p.ns = ns;
     vec3 ao = a - o;
     p.d0 = dot(ns, ao) * inv_r;
-    float lo_a = EXACT_MASKS ? -1.0 - 1e-5 * (1.0 + length(ao) * inv_r) : -1.0;
+    float lo_a = EXACT_MASKS ? -1.0 - sphere_allowance(ao, inv_r) : -1.0;
     if (!(p.d0 > lo_a)) {
         return PAIR_PLANE_REJECTED; // the whole light is on x's side of T
     }
@@ -471,11 +493,11 @@ void main() {
         // Exact mode rejects a plane only beyond its rounding (1e-5 of
         // the distance in light radii), so that it never drops a light
         // sample that the per-sample test would block.
-        float lo_x = EXACT_MASKS ? -1.0 - 1e-5 * (1.0 + length(ox) * inv_r) : -1.0;
+        float lo_x = EXACT_MASKS ? -1.0 - sphere_allowance(ox, inv_r) : -1.0;
 #if EXACT_MASKS
         // The rounding bound of the per-sample test against the planes
-        // through x, in light radii: 64 f32 ulps of the magnitudes involved.
-        float delta_x = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(x) + length(ox)) * inv_r;
+        // through x.
+        float delta_x = rounding_bound(x, o, inv_r);
 #endif
 #if SURE
         // This unit's segment of the unsure list (by its index in the dispatch).
@@ -484,7 +506,7 @@ void main() {
 #if EXACT
         // Exact mode's group rules hold beyond twice the per-sample test's
         // rounding bound and the whole-light rejection's allowance.
-        float margin_x = 2.0 * (delta_x + 1e-5 * (1.0 + length(ox) * inv_r));
+        float margin_x = 2.0 * (delta_x + sphere_allowance(ox, inv_r));
 #endif
         FOR_BLOCKS(ACC_BLOCK)
         // Per window (PAIR_WINDOW, shadow_common.glsl): the cheap rules of
@@ -530,7 +552,7 @@ void main() {
                 pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
                 bool hit = false;
 #if SURE
-                float delta_a = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(p.a) + length(p.a - o)) * inv_r;
+                float delta_a = rounding_bound(p.a, o, inv_r);
                 bool rounding_too_large = max(delta_a, delta_x) > pc.soft_light.w;
                 uint res = pc.soft.z;
                 uint lt0 = lut_texel(lut_normal_cell(p.ns, res), p.d0, res), lf0 = bound_flags(p.d0);
@@ -586,8 +608,8 @@ void main() {
                 uint base = first_block * 128u;
                 uint n_block = min(pc.soft.y - min(base, pc.soft.y), 128u);
                 uint n_groups = (n_block + LIGHT_GROUP_SIZE - 1u) / LIGHT_GROUP_SIZE;
-                float delta_a = ROUNDING_BOUND * (length(o) + pc.soft_light.x + length(p.a) + length(p.a - o)) * inv_r;
-                float margin_a = 2.0 * (delta_a + 1e-5 * (1.0 + length(p.a - o) * inv_r));
+                float delta_a = rounding_bound(p.a, o, inv_r);
+                float margin_a = 2.0 * (delta_a + sphere_allowance(p.a - o, inv_r));
                 uvec4 bits = uvec4(0u);
                 uint candidates = 0u;
                 for (uint g = 0u; g < n_groups; g++) {
@@ -664,24 +686,14 @@ void main() {
         atomicAdd(counters[COUNTER_BLOCKING], sum_blocking);
         atomicAdd(counters[COUNTER_PLANE_REJECTED], sum_plane);
         atomicAdd(counters[COUNTER_PAST_SPHERE], sum_past);
-        // A 64-bit sum in two words: the carry of the low word.
-        uint before = atomicAdd(counters[COUNTER_UNSURE_LO], sum_unsure);
-        if (before + sum_unsure < before) {
-            atomicAdd(counters[COUNTER_UNSURE_HI], 1u);
-        }
+        count_wide(COUNTER_UNSURE_LO, sum_unsure);
     }
 #if EXACT
     uint sum_groups_tested = subgroupAdd(groups_tested);
     uint sum_groups_every = subgroupAdd(groups_every);
     if (subgroupElect() && (sum_groups_tested | sum_groups_every) != 0u) {
-        uint before = atomicAdd(counters[COUNTER_GROUPS_TESTED_LO], sum_groups_tested);
-        if (before + sum_groups_tested < before) {
-            atomicAdd(counters[COUNTER_GROUPS_TESTED_HI], 1u);
-        }
-        before = atomicAdd(counters[COUNTER_GROUPS_EVERY_LO], sum_groups_every);
-        if (before + sum_groups_every < before) {
-            atomicAdd(counters[COUNTER_GROUPS_EVERY_HI], 1u);
-        }
+        count_wide(COUNTER_GROUPS_TESTED_LO, sum_groups_tested);
+        count_wide(COUNTER_GROUPS_EVERY_LO, sum_groups_every);
     }
 #endif
 }

@@ -214,7 +214,8 @@ pub mod counter {
     /// buffer.
     pub const COUNT: usize = 21;
 
-    /// The (low, high) slot pairs that hold 64-bit sums.
+    /// The (low, high) slot pairs that hold 64-bit sums (the high word
+    /// right after the low one: `count_wide` in soft_occlusion.comp).
     pub const WIDE: [(usize, usize); 3] = [
         (UNSURE_LO, UNSURE_HI),
         (GROUPS_TESTED_LO, GROUPS_TESTED_HI),
@@ -349,6 +350,9 @@ pub(crate) mod tests {
             (5, 3)
         );
         assert_eq!(a[counter::TESTS], u32::MAX, "narrow counters saturate");
+        for (lo, hi) in counter::WIDE {
+            assert_eq!(hi, lo + 1, "the shaders add the carry to the next slot");
+        }
     }
 
     #[test]

@@ -672,8 +672,6 @@ fn not_made() -> crate::Error {
     crate::Error::InvalidInput("an occlusion pipeline was not prepared".into())
 }
 
-/// The light samples (`vec4` each) and the per-pixel rotation block of `sl`,
-/// as the occlusion passes' uniform buffers hold them.
 /// The `LightSamples` uniform block of the occlusion pass for `sl` (the
 /// samples, then from sample [`MAX_SOFT_SAMPLES`] on their groups'
 /// spheres, [`light_groups`]) and its per-pixel rotation block.
