@@ -27,6 +27,8 @@
 //! The near plane is `1e-6 ×` the distance of the farthest vertex; there is
 //! no far plane.
 
+use std::ops::Range;
+
 use glam::DVec3;
 
 use crate::gpu::alpha::AlphaInputs;
@@ -34,8 +36,9 @@ use crate::gpu::dispatch::RGBA32UI;
 use crate::gpu::shaders;
 #[cfg(doc)]
 use crate::gpu::shared::VIEW_SAMPLE_VALID;
-use crate::gpu::shared::{GpuTriangle, GpuViewSample};
+use crate::gpu::shared::{GpuTriangle, GpuViewSample, TRIANGLE_ALPHA};
 use crate::scene::Camera;
+use crate::vulkan::Draw;
 use crate::vulkan::{
     vertex_input_barrier, vk, Attachment, Barrier, Binding, Buffer, BufferDesc, CommandRecorder,
     ComputePipeline, ComputePipelineDesc, DescriptorKind, Framebuffer, GpuContext,
@@ -106,6 +109,42 @@ pub struct ViewSamplePass {
 }
 
 const ID_FORMAT: vk::Format = vk::Format::R32_UINT;
+
+/// Runs of triangles without alpha tests shorter than this draw with the
+/// alpha-testing variant (which passes them as it would any opaque
+/// triangle), so that a scene of many small primitives makes few draws.
+const MIN_OPAQUE_RUN: u32 = 1024;
+
+/// The raster's draws over `triangles` (a frame with alpha tests), in id
+/// order: each run of at least [`MIN_OPAQUE_RUN`] triangles without
+/// [`TRIANGLE_ALPHA`] with the `OPAQUE` variant (false), whose depth test
+/// runs before its fragment shader, the rest with the alpha-testing one
+/// (true), which must shade every fragment it covers before its depth
+/// test (on lavapipe). The ids are drawn in order, so equal depths keep
+/// the smaller id as with one draw.
+fn raster_runs(triangles: &[GpuTriangle]) -> Vec<(bool, Range<u32>)> {
+    let mut runs: Vec<(bool, Range<u32>)> = Vec::new();
+    let mut push = |alpha: bool, ids: Range<u32>| match runs.last_mut() {
+        Some((a, last)) if *a == alpha && last.end == ids.start => last.end = ids.end,
+        _ => runs.push((alpha, ids)),
+    };
+    let mut start = 0usize;
+    while start < triangles.len() {
+        let alpha = triangles[start].flags & TRIANGLE_ALPHA != 0;
+        let len = triangles[start..]
+            .iter()
+            .take_while(|t| (t.flags & TRIANGLE_ALPHA != 0) == alpha)
+            .count();
+        let end = start + len;
+        let as_alpha = alpha || (len as u32) < MIN_OPAQUE_RUN;
+        push(as_alpha, start as u32..end as u32);
+        start = end;
+    }
+    if runs.is_empty() {
+        runs.push((false, 0..0));
+    }
+    runs
+}
 const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 
 impl ViewSamplePass {
@@ -234,17 +273,28 @@ impl ViewSamplePass {
             textures,
             alphas,
         ];
-        let raster = match any_alpha {
-            true => &self.raster,
-            false => &self.raster_opaque,
+        let runs = match any_alpha {
+            true => raster_runs(&triangles[..nt as usize]),
+            false => vec![(false, 0..nt)],
         };
-        rec.draw_pass(
-            raster,
+        let draws: Vec<Draw> = runs
+            .iter()
+            .map(|(alpha, ids)| Draw {
+                pipeline: if *alpha {
+                    &self.raster
+                } else {
+                    &self.raster_opaque
+                },
+                first_vertex: 3 * ids.start,
+                vertex_count: 3 * (ids.end - ids.start),
+            })
+            .collect();
+        rec.draw_pass_ranges(
+            &draws,
             &targets.framebuffer,
             &clear,
             Some(tri_buf),
             (bytemuck::bytes_of(&raster_push), &raster_bindings),
-            3 * nt,
         )?;
         rec.copy_attachment_to_buffer(&targets.ids, 4, ids_buf)?;
         rec.barrier(Barrier::TransferToCompute);
@@ -415,4 +465,63 @@ fn pushes(
         ray: resolve_push,
     };
     Ok((raster_push, resolve_push, nt))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn triangles(alpha: &[(bool, usize)]) -> Vec<GpuTriangle> {
+        alpha
+            .iter()
+            .flat_map(|&(a, n)| {
+                std::iter::repeat_n(
+                    GpuTriangle {
+                        flags: if a { TRIANGLE_ALPHA } else { 0 },
+                        ..Default::default()
+                    },
+                    n,
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn raster_runs_cover_every_id_in_order() {
+        let m = MIN_OPAQUE_RUN as usize;
+        let cases: [&[(bool, usize)]; 5] = [
+            &[],
+            &[(true, 5)],
+            &[(false, m), (true, 3), (false, m + 1)],
+            // A short opaque run joins the alpha runs around it.
+            &[(true, 2), (false, m - 1), (true, 4), (false, 2 * m)],
+            &[(false, 7)],
+        ];
+        let expected: [&[(bool, u32)]; 5] = [
+            &[(false, 0)],
+            &[(true, 5)],
+            &[(false, m as u32), (true, 3), (false, m as u32 + 1)],
+            &[(true, m as u32 + 5), (false, 2 * m as u32)],
+            &[(true, 7)],
+        ];
+        for (case, want) in cases.iter().zip(expected) {
+            let t = triangles(case);
+            let runs = raster_runs(&t);
+            let mut next = 0;
+            for (alpha, ids) in &runs {
+                assert_eq!(ids.start, next, "runs in id order, none left out: {case:?}");
+                next = ids.end;
+                // An alpha-tested triangle is never drawn without its test.
+                assert!(
+                    *alpha
+                        || t[ids.start as usize..ids.end as usize]
+                            .iter()
+                            .all(|t| t.flags & TRIANGLE_ALPHA == 0)
+                );
+            }
+            assert_eq!(next as usize, t.len());
+            let got: Vec<(bool, u32)> = runs.iter().map(|(a, r)| (*a, r.end - r.start)).collect();
+            assert_eq!(got, want, "{case:?}");
+        }
+    }
 }

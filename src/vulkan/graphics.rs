@@ -589,6 +589,19 @@ impl Drop for Framebuffer {
     }
 }
 
+/// One draw of [`CommandRecorder::draw_pass_ranges`]: `pipeline` draws
+/// vertices `first_vertex .. first_vertex + vertex_count`.
+#[derive(Clone, Copy)]
+pub struct Draw<'a> {
+    /// The pipeline; every draw of a pass needs a render pass and a layout
+    /// compatible with the first one's.
+    pub pipeline: &'a GraphicsPipeline,
+    /// The first vertex (`gl_VertexIndex` counts from it).
+    pub first_vertex: u32,
+    /// How many vertices.
+    pub vertex_count: u32,
+}
+
 impl CommandRecorder {
     /// Records one render pass over the whole `framebuffer`: attachments
     /// cleared to `clear` (one value per attachment, colour ones first),
@@ -605,17 +618,43 @@ impl CommandRecorder {
         framebuffer: &Framebuffer,
         clear: &[vk::ClearValue],
         vertices: Option<&Buffer>,
-        (push, bindings): (&[u8], &[Binding<'_>]),
+        constants: (&[u8], &[Binding<'_>]),
         vertex_count: u32,
     ) -> Result<()> {
+        let draw = Draw {
+            pipeline,
+            first_vertex: 0,
+            vertex_count,
+        };
+        self.draw_pass_ranges(&[draw], framebuffer, clear, vertices, constants)
+    }
+
+    /// [`Self::draw_pass`] with several draws in order, each with its own
+    /// pipeline (the same `push` constants and `bindings` for all; the
+    /// render pass is the first pipeline's).
+    pub fn draw_pass_ranges(
+        &mut self,
+        draws: &[Draw<'_>],
+        framebuffer: &Framebuffer,
+        clear: &[vk::ClearValue],
+        vertices: Option<&Buffer>,
+        (push, bindings): (&[u8], &[Binding<'_>]),
+    ) -> Result<()> {
+        let Some(first) = draws.first() else {
+            return Err(Error::InvalidInput("a render pass needs a draw".into()));
+        };
+        let pipeline = first.pipeline;
         let set = self.descriptor_set(pipeline, bindings)?;
-        if push.len() as u32 != pipeline.push_constant_bytes() {
-            return Err(Error::InvalidInput(format!(
-                "pipeline \"{}\" takes {} bytes of push constants, got {}",
-                pipeline.name(),
-                pipeline.push_constant_bytes(),
-                push.len()
-            )));
+        for draw in draws {
+            let p = draw.pipeline;
+            if push.len() as u32 != p.push_constant_bytes() {
+                return Err(Error::InvalidInput(format!(
+                    "pipeline \"{}\" takes {} bytes of push constants, got {}",
+                    p.name(),
+                    p.push_constant_bytes(),
+                    push.len()
+                )));
+            }
         }
         if clear.len() != framebuffer.attachments {
             return Err(Error::InvalidInput(format!(
@@ -655,34 +694,42 @@ impl CommandRecorder {
         let cmd = self.raw();
         unsafe {
             d.cmd_begin_render_pass(cmd, &begin, vk::SubpassContents::INLINE);
-            d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.raw());
-            if let Some(set) = set {
-                let layout = pipeline.layout();
-                d.cmd_bind_descriptor_sets(
-                    cmd,
-                    vk::PipelineBindPoint::GRAPHICS,
-                    layout,
-                    0,
-                    &[set],
-                    &[],
-                );
-            }
             d.cmd_set_viewport(cmd, 0, &[viewport]);
             d.cmd_set_scissor(cmd, 0, &[area]);
-            if !push.is_empty() {
-                d.cmd_push_constants(
-                    cmd,
-                    pipeline.layout(),
-                    vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
-                    0,
-                    push,
-                );
-            }
             if let Some(v) = vertices {
                 d.cmd_bind_vertex_buffers(cmd, 0, &[v.raw()], &[0]);
             }
-            if vertex_count > 0 {
-                d.cmd_draw(cmd, vertex_count, 1, 0, 0);
+            let mut bound: Option<vk::Pipeline> = None;
+            for draw in draws {
+                let p = draw.pipeline;
+                if bound != Some(p.raw()) {
+                    // The set and constants again with each pipeline's own
+                    // (compatible) layout.
+                    d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, p.raw());
+                    if let Some(set) = set {
+                        d.cmd_bind_descriptor_sets(
+                            cmd,
+                            vk::PipelineBindPoint::GRAPHICS,
+                            p.layout(),
+                            0,
+                            &[set],
+                            &[],
+                        );
+                    }
+                    if !push.is_empty() {
+                        d.cmd_push_constants(
+                            cmd,
+                            p.layout(),
+                            vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+                            0,
+                            push,
+                        );
+                    }
+                    bound = Some(p.raw());
+                }
+                if draw.vertex_count > 0 {
+                    d.cmd_draw(cmd, draw.vertex_count, 1, draw.first_vertex, 0);
+                }
             }
             d.cmd_end_render_pass(cmd);
         }

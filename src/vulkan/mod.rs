@@ -92,7 +92,7 @@ pub use device::{
     DeviceRequirements, DeviceType, ExternalDevice, MemoryHeapInfo,
 };
 pub use graphics::{
-    vertex_input_barrier, Attachment, Framebuffer, GraphicsPipeline, GraphicsPipelineDesc,
+    vertex_input_barrier, Attachment, Draw, Framebuffer, GraphicsPipeline, GraphicsPipelineDesc,
     VertexAttribute,
 };
 pub use image::{Image, ImageDesc};
