@@ -44,6 +44,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
+use rayon::prelude::*;
 
 use crate::scene::{AlphaTest, MagFilter, Scene, Wrap};
 
@@ -255,38 +256,65 @@ impl AlphaTables {
     /// The tables of `scene`'s alpha-tested triangles ([`Scene::triangles`]
     /// order); empty when it has none.
     pub fn new(scene: &Scene) -> Self {
+        let tests = scene.alpha_tests();
         // Most scenes have no alpha test: skip building every triangle.
-        if scene.alpha_tests().iter().all(Option::is_none) {
+        if tests.iter().all(Option::is_none) {
             return AlphaTables::default();
         }
         let mut tables = AlphaTables::default();
-        // Textures by their test's address: `triangles` keeps every test
-        // alive, so no address is reused meanwhile.
+        // Textures by their test's address (one test per material), in the
+        // order of their first triangle.
         let mut texture_of: HashMap<*const AlphaTest, u32> = HashMap::new();
-        let triangles = scene.triangles();
-        for t in &triangles {
-            let Some((test, uvs)) = &t.alpha else {
-                tables.triangle_records.push(ALPHA_NONE);
-                continue;
-            };
-            let texture = *texture_of.entry(Arc::as_ptr(test)).or_insert_with(|| {
-                tables.textures.push(AlphaTexture::new(test));
-                (tables.textures.len() - 1) as u32
-            });
-            let uvs = uvs.map(|uv| uv.as_vec2());
+        let mesh_texture: Vec<Option<u32>> = scene
+            .meshes
+            .iter()
+            .zip(&tests)
+            .map(|(m, test)| {
+                let test = test.as_ref().filter(|_| !m.indices.is_empty())?;
+                Some(*texture_of.entry(Arc::as_ptr(test)).or_insert_with(|| {
+                    tables.textures.push(AlphaTexture::new(test));
+                    (tables.textures.len() - 1) as u32
+                }))
+            })
+            .collect();
+        // Per triangle (global order), in parallel: its texture coordinates
+        // and footprint, None for an opaque mesh's.
+        let per_triangle: Vec<Option<([Vec2; 3], u32, Footprint)>> = scene
+            .meshes
+            .iter()
+            .zip(&mesh_texture)
+            .flat_map(|(m, &texture)| m.indices.iter().map(move |tri| (m, texture, tri)))
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|(m, texture, tri)| {
+                let texture = texture?;
+                // As Scene::triangles reads them: (0, 0) where missing.
+                let uvs = tri.map(|i| {
+                    m.uvs
+                        .as_ref()
+                        .and_then(|u| u.get(i as usize).copied())
+                        .unwrap_or(glam::DVec2::ZERO)
+                        .as_vec2()
+                });
+                let footprint = tables.textures[texture as usize].footprint(uvs);
+                Some((uvs, texture, footprint))
+            })
+            .collect();
+        tables.triangle_records.reserve(per_triangle.len());
+        for t in per_triangle {
             // A triangle opaque wherever its coverage can be read is an
             // opaque caster: the alpha round is for the others.
-            let footprint = tables.textures[texture as usize].footprint(uvs);
-            if footprint == Footprint::Opaque {
-                tables.triangle_records.push(ALPHA_NONE);
-                continue;
+            match t {
+                Some((uvs, texture, footprint)) if footprint != Footprint::Opaque => {
+                    tables.triangle_records.push(tables.records.len() as u32);
+                    tables.records.push(AlphaRecord {
+                        uvs,
+                        texture,
+                        invisible: footprint == Footprint::Transparent,
+                    });
+                }
+                _ => tables.triangle_records.push(ALPHA_NONE),
             }
-            tables.triangle_records.push(tables.records.len() as u32);
-            tables.records.push(AlphaRecord {
-                uvs,
-                texture,
-                invisible: footprint == Footprint::Transparent,
-            });
         }
         if tables.records.is_empty() {
             return AlphaTables::default();
@@ -359,6 +387,39 @@ fn wrap_code(w: Wrap) -> u32 {
 mod tests {
     use super::*;
 
+    /// The tables as the per-triangle loop over `Scene::triangles` built
+    /// them (before the per-mesh, parallel build): the same records.
+    fn tables_one_by_one(scene: &Scene) -> AlphaTables {
+        let mut tables = AlphaTables::default();
+        let mut texture_of: HashMap<*const AlphaTest, u32> = HashMap::new();
+        for t in &scene.triangles() {
+            let Some((test, uvs)) = &t.alpha else {
+                tables.triangle_records.push(ALPHA_NONE);
+                continue;
+            };
+            let texture = *texture_of.entry(Arc::as_ptr(test)).or_insert_with(|| {
+                tables.textures.push(AlphaTexture::new(test));
+                (tables.textures.len() - 1) as u32
+            });
+            let uvs = uvs.map(|uv| uv.as_vec2());
+            let footprint = tables.textures[texture as usize].footprint(uvs);
+            if footprint == Footprint::Opaque {
+                tables.triangle_records.push(ALPHA_NONE);
+                continue;
+            }
+            tables.triangle_records.push(tables.records.len() as u32);
+            tables.records.push(AlphaRecord {
+                uvs,
+                texture,
+                invisible: footprint == Footprint::Transparent,
+            });
+        }
+        if tables.records.is_empty() {
+            return AlphaTables::default();
+        }
+        tables
+    }
+
     fn texture(size: [u32; 2], alphas: Vec<u8>, linear: bool, wrap: [Wrap; 2]) -> AlphaTexture {
         AlphaTexture {
             size,
@@ -368,6 +429,67 @@ mod tests {
             cutoff: 0.5,
             factor: 1.0,
         }
+    }
+
+    #[test]
+    fn tables_equal_the_per_triangle_build() {
+        let mut scene = crate::scene::builtin::builtin("fence").unwrap().scene;
+        let demo = crate::scene::builtin::builtin("demo").unwrap().scene;
+        let fence = scene
+            .meshes
+            .iter()
+            .find(|m| {
+                m.material
+                    .is_some_and(|k| scene.materials[k].alpha_test().is_some())
+            })
+            .cloned()
+            .expect("the fence is alpha-tested");
+        // Opaque meshes between alpha-tested ones; a tested mesh without
+        // triangles; one whose coordinates miss a corner (opaque: the test
+        // needs them); copies whose coordinates read a few texels at spots
+        // all over the texture (opaque, clear or mixed footprints).
+        let materials = scene.materials.len();
+        scene.materials.extend(demo.materials.iter().cloned());
+        for m in &demo.meshes {
+            let mut m = m.clone();
+            m.material = m.material.map(|i| i + materials);
+            scene.meshes.push(m);
+        }
+        let mut empty = fence.clone();
+        empty.indices.clear();
+        let mut short = fence.clone();
+        short.uvs.as_mut().unwrap().pop();
+        scene.meshes.extend([empty, short]);
+        // The lattice's holes are centred where x + y and x - y are 8
+        // modulo 16 (in texels of 64): (16.5, 24.5) is clear all round.
+        let hole = glam::DVec2::new(16.5, 24.5) / 64.0;
+        for k in 0..65 {
+            let mut spot = fence.clone();
+            let grid = glam::DVec2::new((k % 8) as f64 + 0.3, (k / 8) as f64 + 0.6) / 8.0;
+            let at = if k == 64 { hole } else { grid };
+            let scale = [1e-3, 2e-2][k % 2];
+            for uv in spot.uvs.as_mut().unwrap() {
+                *uv = at + *uv * scale;
+            }
+            scene.meshes.push(spot);
+        }
+        let tables = AlphaTables::new(&scene);
+        assert_eq!(tables.triangle_records.len(), scene.triangle_count());
+        assert_eq!(tables, tables_one_by_one(&scene));
+        // Every kind of footprint was built.
+        let opaque_tested = scene
+            .meshes
+            .iter()
+            .filter(|m| m.material == fence.material)
+            .map(|m| m.indices.len())
+            .sum::<usize>()
+            - tables.records.len();
+        assert!(
+            opaque_tested > 0,
+            "some tested triangles read only opaque texels"
+        );
+        assert!(tables.records.iter().any(|r| r.invisible));
+        assert!(tables.records.iter().any(|r| !r.invisible));
     }
 
     #[test]
