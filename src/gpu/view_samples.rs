@@ -15,10 +15,12 @@
 //!    culling; the fragment shader writes `id + 1` to an `R32_UINT`
 //!    attachment (0 = nothing). The rasteriser samples pixel centres, so a
 //!    pixel's id is the triangle its centre ray meets, up to edge rules.
-//!    A frame without alpha-tested triangles draws with the shader's
-//!    `OPAQUE` variant, which discards nothing, so its depth test runs
-//!    before the shader: the same ids, and lavapipe skips the hidden
-//!    fragments.
+//!    Triangles without alpha tests draw with the shader's `OPAQUE`
+//!    variant, which discards nothing, so its depth test runs before the
+//!    shader: the same ids, and lavapipe skips the hidden fragments. A
+//!    frame with alpha tests draws its triangles in id order by runs
+//!    (`raster_runs`): long runs of opaque triangles with that variant,
+//!    the rest with the alpha-testing one.
 //! 2. **Resolve** (`shaders/view_samples_resolve.comp`): per pixel, the
 //!    pixel-centre ray (same formula as [`Camera::ray_direction`], in f32) is
 //!    intersected with that triangle's plane — exact rather than an
