@@ -20,7 +20,9 @@
 //!
 //! `cargo bench --features embree --bench embree` (`-- NAME` runs the scenes
 //! whose name contains NAME; `AFS_EMBREE_CONFIGS=hard,soft 128` only the
-//! configurations whose name contains one of those).
+//! configurations whose name contains one of those; `AFS_EMBREE_PASSES=1`
+//! also prints where our last frame's time went, phase by phase and pass
+//! by pass).
 
 use std::path::{Path, PathBuf};
 
@@ -130,6 +132,7 @@ fn main() {
                 SoftMode::Lut,
             ),
         ];
+        let show_passes = std::env::var("AFS_EMBREE_PASSES").is_ok_and(|v| v != "0");
         let wanted = std::env::var("AFS_EMBREE_CONFIGS").ok();
         let wanted = |c: &str| {
             wanted
@@ -206,6 +209,24 @@ fn main() {
                 row.differ,
                 row.samples
             );
+            if show_passes {
+                // Where our last frame's time went (ms; the light's passes
+                // by name, GPU time where the device has timestamps).
+                let passes: Vec<String> = ls
+                    .ms
+                    .iter()
+                    .filter_map(|(k, v)| v.map(|v| format!("{k} {v:.1}")))
+                    .collect();
+                println!(
+                    "{:>18} {:>16}  view samples {:.1}, inputs {:.1}, shading {:.1}; light {}",
+                    "",
+                    "",
+                    stats.ms.view_samples_gpu,
+                    stats.ms.inputs_cpu,
+                    stats.ms.shade_cpu,
+                    passes.join(", ")
+                );
+            }
             rows.push(row);
         }
     }
