@@ -1,9 +1,11 @@
 //! glTF and GLB bytes through the loader (`load_gltf_slice`, from memory:
 //! no base folder, so no file I/O), then what `afs` does with a loaded
-//! scene before rendering: the flattened triangles, the default camera and
-//! light, and the range check against that camera.
+//! scene before rendering: the flattened triangles, the alpha tests'
+//! tables, the default camera and light, and the range check against that
+//! camera.
 #![no_main]
 
+use alias_free_shadows::cpu::alpha::AlphaTables;
 use alias_free_shadows::scene::{file, gltf_load};
 use libfuzzer_sys::fuzz_target;
 
@@ -21,6 +23,8 @@ fuzz_target!(|data: &[u8]| {
             for t in &triangles {
                 assert!(t.vertices.iter().all(|v| v.is_finite()));
             }
+            let alpha = AlphaTables::new(&scene);
+            assert!(alpha.is_empty() || alpha.triangle_records.len() == triangles.len());
             for c in &scene.cameras {
                 c.validate().expect("cameras the loader keeps are valid");
             }

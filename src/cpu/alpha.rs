@@ -209,7 +209,15 @@ impl AlphaTexture {
         let grow = glam::DVec2::splat(1.0) + (hi - lo) * 1e-3;
         let shift = if self.linear { 0.5 } else { 0.0 };
         let (lo, hi) = (lo - grow - shift, hi + grow - shift);
-        if !lo.is_finite() || !hi.is_finite() {
+        // Past ±2²⁴ texels the reads clamp (clamp_coordinate): such a
+        // triangle is tested per point (and its box's integer corners
+        // would overflow).
+        let limit = 16_777_216.0;
+        if !lo.is_finite()
+            || !hi.is_finite()
+            || lo.min_element() < -limit
+            || hi.max_element() > limit
+        {
             return Footprint::Mixed;
         }
         let (x0, y0) = (lo.x.floor() as i64, lo.y.floor() as i64);
@@ -428,6 +436,25 @@ mod tests {
             wrap,
             cutoff: 0.5,
             factor: 1.0,
+        }
+    }
+
+    #[test]
+    fn footprints_far_out_are_mixed() {
+        // Found by fuzzing: coordinates near f32::MAX overflowed the box's
+        // integer corners.
+        let t = texture([2, 2], vec![255; 4], false, [Wrap::Repeat; 2]);
+        assert_eq!(
+            t.footprint([Vec2::ZERO, Vec2::X, Vec2::Y]),
+            Footprint::Opaque
+        );
+        for far in [1e7, 1e12, f32::MAX, -f32::MAX] {
+            let uvs = [
+                Vec2::splat(far),
+                Vec2::splat(far) + Vec2::X,
+                Vec2::splat(far) + Vec2::Y,
+            ];
+            assert_eq!(t.footprint(uvs), Footprint::Mixed, "{far}");
         }
     }
 
