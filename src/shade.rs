@@ -163,6 +163,9 @@ fn bilinear(image: &image::RgbaImage, uv: DVec2) -> [f64; 3] {
     if !(x.is_finite() && y.is_finite()) || image.width() == 0 || image.height() == 0 {
         return [1.0; 3];
     }
+    // Far out, f64 has no fraction left; clamped there, the corners' +1
+    // cannot overflow i64.
+    let (x, y) = (x.clamp(-1e15, 1e15), y.clamp(-1e15, 1e15));
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
     let texel = |dx: i64, dy: i64| {
@@ -371,6 +374,15 @@ pub fn faces_light(position: DVec3, normal: DVec3, samples: &crate::light::Light
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bilinear_reads_far_coordinates_without_overflow() {
+        let img = image::RgbaImage::from_pixel(2, 2, image::Rgba([255, 255, 255, 255]));
+        for far in [1e12, 1e19, 1e300, -1e300, f64::MAX] {
+            let c = bilinear(&img, DVec2::new(far, -far));
+            assert!(c.iter().all(|v| (v - 1.0).abs() < 1e-9), "{far}: {c:?}");
+        }
+    }
 
     /// The tables give the formula's code for every value tried: a sweep
     /// of [−0.1, 1.1] and the floats on both sides of every threshold.
