@@ -176,8 +176,7 @@ impl ShadowStats {
             ms.insert(t.name.clone(), v);
         }
         let texels = (faces as f64 * (resolution as f64).powi(2)).max(1.0);
-        let wide = |lo: usize, hi: usize| c[lo] as u64 | (c[hi] as u64) << 32;
-        let unsure = wide(counter::UNSURE_LO, counter::UNSURE_HI);
+        let unsure = counter::wide(c, counter::UNSURE_LO);
         ShadowStats {
             light_texels: resolution,
             light_faces: faces,
@@ -221,8 +220,8 @@ impl ShadowStats {
                     / (c[counter::TESTS] as f64 * sl.samples.len() as f64).max(1.0),
                 unsure_entries: out.soft.as_ref().map_or(0, |s| s.unsure_entries),
                 unsure_ranges: out.soft.as_ref().map_or(0, |s| s.unsure_ranges),
-                light_groups_tested: wide(counter::GROUPS_TESTED_LO, counter::GROUPS_TESTED_HI),
-                light_groups_every: wide(counter::GROUPS_EVERY_LO, counter::GROUPS_EVERY_HI),
+                light_groups_tested: counter::wide(c, counter::GROUPS_TESTED_LO),
+                light_groups_every: counter::wide(c, counter::GROUPS_EVERY_LO),
             }),
         }
     }

@@ -222,6 +222,12 @@ pub mod counter {
         (GROUPS_EVERY_LO, GROUPS_EVERY_HI),
     ];
 
+    /// The 64-bit sum whose low word is slot `lo` of `c` (one of the
+    /// [`WIDE`] pairs: the high word is the next slot).
+    pub fn wide(c: &[u32; COUNT], lo: usize) -> u64 {
+        c[lo] as u64 | (c[lo + 1] as u64) << 32
+    }
+
     /// Adds the counters `other` (of another round, batch or run) to
     /// `acc`: the [`WIDE`] pairs as 64-bit sums, every other slot
     /// saturating at `u32::MAX`.
@@ -231,8 +237,7 @@ pub mod counter {
             *a = a.saturating_add(*b);
         }
         for (lo, hi) in WIDE {
-            let wide = |c: &[u32; COUNT]| c[lo] as u64 | (c[hi] as u64) << 32;
-            let total = wide(acc).saturating_add(wide(other));
+            let total = wide(acc, lo).saturating_add(wide(other, lo));
             sum[lo] = total as u32;
             sum[hi] = (total >> 32) as u32;
         }
