@@ -5,8 +5,12 @@
 // uvec4 per 128-sample block, the blocks of a texel side by side (one
 // index serves every block). Texel (i, j, k): n in octahedral coordinates
 // (i, j over [-1, 1]^2: no trigonometry, cells within a factor ~2 of equal
-// area) and d over [-1, 1].
-// Twin: cpu::plane_lut (lut_texel_plane, lut_index, build_lut).
+// area) and d over [-1, 1]. That is approximate mode's table; look-up
+// mode's (soft_occlusion.comp, sure_texels) has, per normal cell, the
+// planes at d = -1 + k * 2 / res side by side (index (cell * res + k) *
+// blocks + block).
+// Twin: cpu::plane_lut (lut_texel_plane, lut_index, build_lut,
+// build_sure_lut).
 #ifndef AFS_SOFT_COMMON_GLSL
 #define AFS_SOFT_COMMON_GLSL
 #include "shadow_common.glsl"
@@ -83,16 +87,11 @@ uint lut_index(vec3 n, float d, uint res) {
     return (uint(c.z) * res + uint(c.y)) * res + uint(c.x);
 }
 
-// lut_index in two steps, for several d with one normal: the normal's
-// cell (the index with k = 0), then the texel of d in it.
+// The normal's cell of lut_index (its index with k = 0).
 uint lut_normal_cell(vec3 n, uint res) {
     float r = float(res);
     vec2 c = clamp(floor((oct_encode(n) + 1.0) * (0.5 * r)), vec2(0.0), vec2(r - 1.0));
     return uint(c.y) * res + uint(c.x);
-}
-uint lut_texel(uint cell, float d, uint res) {
-    float r = float(res);
-    return uint(clamp(floor((d + 1.0) * (0.5 * r)), 0.0, r - 1.0)) * res * res + cell;
 }
 
 // The exact per-sample test (exact mode, and the look-up mode's unsure

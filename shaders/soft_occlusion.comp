@@ -137,11 +137,9 @@ uint plane_code(vec3 u, float d) {
     return d >= 1.0 ? LUT_ALL : lut_index(u, d, pc.soft.z);
 }
 
-// SURE mode: the flags of a plane at d outside the table's range [-1, 1)
-// (lut_texel clamps it): at d >= 1 its clamped texel's "some" misses
-// samples (every sample may be behind: maybe all), and past 1 + the
-// rounding allowance every sample is certainly behind; below -1 its
-// texel's "every" may claim samples that are not behind (sure none).
+// SURE mode: where no plane of the table bounds a caster's plane (see
+// sure_texels): every sample certainly behind (SURE_ALL), none certainly
+// behind (SURE_NONE), every sample possibly behind (MAYBE_ALL).
 #define BOUND_MAYBE_ALL 1u
 #define BOUND_SURE_ALL 2u
 #define BOUND_SURE_NONE 4u
@@ -161,10 +159,29 @@ float rounding_bound(vec3 q, vec3 o, float inv_r) {
 float sphere_allowance(vec3 v, float inv_r) {
     return 1e-5 * (1.0 + length(v) * inv_r);
 }
-uint bound_flags(float d) {
-    return (d >= 1.0 ? BOUND_MAYBE_ALL : 0u)
-        | (d >= 1.0 + pc.soft_light.w + 1e-6 ? BOUND_SURE_ALL : 0u)
-        | (d < -1.0 ? BOUND_SURE_NONE : 0u);
+// plane_lut::SURE_SLACK: the build's and this choice's f32 rounding, and
+// this device's decode of a cell's centre normal against the host's.
+#define SURE_SLACK 3e-5
+// SURE mode: the table's planes that bound caster plane (u, d) in u's
+// normal cell (centre n_t): `te` at or below d - delta, `ts` at or above
+// d + delta (texel indices, without the block), delta bounding
+// |(u - n_t).y| over |y| <= 1 plus the rounding allowance (soft_light.w)
+// and SURE_SLACK, and the flags where no plane does. Twin:
+// plane_lut::sure_texels.
+void sure_texels(vec3 u, float d, uint res, out uint te, out uint ts, out uint flags) {
+    uint cell = lut_normal_cell(u, res);
+    vec2 c = -1.0 + (vec2(cell % res, cell / res) + 0.5) * (2.0 / float(res));
+    float delta = length(u - oct_decode(c)) * (1.0 + 1e-5) + pc.soft_light.w + SURE_SLACK;
+    float lo = d - delta, hi = d + delta;
+    float half_res = 0.5 * float(res);
+    float ke = floor((lo + 1.0) * half_res);
+    float ks = ceil((hi + 1.0) * half_res);
+    float last = float(res) - 1.0;
+    te = (cell * res + uint(clamp(ke, 0.0, last))) * uint(BLOCKS);
+    ts = (cell * res + uint(clamp(ks, 0.0, last))) * uint(BLOCKS);
+    flags = (ks >= float(res) ? BOUND_MAYBE_ALL : 0u)
+        | (lo >= 1.0 + 1e-6 ? BOUND_SURE_ALL : 0u)
+        | (ke < 0.0 ? BOUND_SURE_NONE : 0u);
 }
 
 uvec4 lut_bits(uint code, uint block) {
@@ -192,14 +209,14 @@ uint bit_count(uvec4 v) {
 }
 
 // SURE mode: a plane's bounds in block `block`: the bits certainly behind
-// it (x) and possibly behind it (y), from its texel's two masks (adjacent:
-// one fetch's cache line) and its flags (bound_flags).
-uvec4 bounds_sure(uint texel, uint flags, uint block) {
-    uvec4 every = texelFetch(lut_tb, int(2u * (texel * uint(BLOCKS) + block)));
+// it (from its lower texel te) and possibly behind it (its upper texel ts,
+// a few texels on: mostly the same cache line), and its flags.
+uvec4 bounds_sure(uint te, uint flags, uint block) {
+    uvec4 every = texelFetch(lut_tb, int(te + block));
     return (flags & BOUND_SURE_ALL) != 0u ? uvec4(0xffffffffu) : ((flags & BOUND_SURE_NONE) != 0u ? uvec4(0u) : every);
 }
-uvec4 bounds_maybe(uint texel, uint flags, uint block) {
-    uvec4 some = texelFetch(lut_tb, int(2u * (texel * uint(BLOCKS) + block) + 1u));
+uvec4 bounds_maybe(uint ts, uint flags, uint block) {
+    uvec4 some = texelFetch(lut_tb, int(ts + block));
     return (flags & BOUND_MAYBE_ALL) != 0u ? uvec4(0xffffffffu) : some;
 }
 
@@ -222,26 +239,25 @@ uvec4 past_end(uint block) {
                   existing_samples(first + 64u), existing_samples(first + 96u));
 }
 
-// SURE mode, block K. The table's texel (n_t, d_t) holds the samples with
-// n_t.y < d_t - w ("every") and n_t.y < d_t + w ("some"), w =
-// plane_lut::bounds_margin: the cell's normal radius, half a cell of d and
-// the rounding allowance LUT_ROUNDING. For a plane (u, d) of that cell,
-// |n_t.y - u.y| and |d_t - d| stay within the first two, and the exact
-// per-sample test differs from "u.y < d" by at most the pair's rounding
-// bound (delta_a, delta_x) when that is within the allowance: so "every"
-// is blocked by that plane as the exact test sees it, and outside "some"
-// it is not. Over the four planes: `sure` is blocked, `maybe` possibly;
-// bits earlier casters blocked are left out (the OR does not need them
+// SURE mode, block K. For each of the caster's four planes (u, d) the
+// table's plane below it (n_t, d_e) has only samples with n_t.y < d_e <=
+// d - delta, so u.y < d - (rounding allowance), and outside its plane
+// above (n_t, d_s) only samples with u.y >= d + (allowance) (sure_texels);
+// the exact per-sample test differs from "u.y < d" by at most the pair's
+// rounding bound (delta_a, delta_x) when that is within the allowance: so
+// "every" is blocked by that plane as the exact test sees it, and outside
+// "some" it is not. Over the four planes: `sure` is blocked, `maybe`
+// possibly; bits earlier casters blocked are left out (the OR does not need them
 // again), and the pair's unsure bits go to a list that
 // soft_occlusion_unsure.comp tests exactly. Nothing is tested here: on
 // lavapipe every branch's code runs for every lane, tested or not.
 #define SURE_BLOCK(K)                                                        \
     uvec4 unsure##K;                                                         \
     {                                                                        \
-        uvec4 sure = bounds_sure(lt0, lf0, uint(K)) & bounds_sure(lt1, lf1, uint(K)) \
-            & bounds_sure(lt2, lf2, uint(K)) & bounds_sure(lt3, lf3, uint(K));   \
-        uvec4 maybe = bounds_maybe(lt0, lf0, uint(K)) & bounds_maybe(lt1, lf1, uint(K)) \
-            & bounds_maybe(lt2, lf2, uint(K)) & bounds_maybe(lt3, lf3, uint(K)); \
+        uvec4 sure = bounds_sure(le0, lf0, uint(K)) & bounds_sure(le1, lf1, uint(K)) \
+            & bounds_sure(le2, lf2, uint(K)) & bounds_sure(le3, lf3, uint(K));   \
+        uvec4 maybe = bounds_maybe(ls0, lf0, uint(K)) & bounds_maybe(ls1, lf1, uint(K)) \
+            & bounds_maybe(ls2, lf2, uint(K)) & bounds_maybe(ls3, lf3, uint(K)); \
         if (rounding_too_large) {                                            \
             sure = uvec4(0u);                                                \
             maybe = uvec4(0xffffffffu);                                      \
@@ -555,10 +571,11 @@ void main() {
                 float delta_a = rounding_bound(p.a, o, inv_r);
                 bool rounding_too_large = max(delta_a, delta_x) > pc.soft_light.w;
                 uint res = pc.soft.z;
-                uint lt0 = lut_texel(lut_normal_cell(p.ns, res), p.d0, res), lf0 = bound_flags(p.d0);
-                uint lt1 = lut_texel(lut_normal_cell(p.u0, res), p.d1, res), lf1 = bound_flags(p.d1);
-                uint lt2 = lut_texel(lut_normal_cell(p.u1, res), p.d2, res), lf2 = bound_flags(p.d2);
-                uint lt3 = lut_texel(lut_normal_cell(p.u2, res), p.d3, res), lf3 = bound_flags(p.d3);
+                uint le0, ls0, lf0, le1, ls1, lf1, le2, ls2, lf2, le3, ls3, lf3;
+                sure_texels(p.ns, p.d0, res, le0, ls0, lf0);
+                sure_texels(p.u0, p.d1, res, le1, ls1, lf1);
+                sure_texels(p.u1, p.d2, res, le2, ls2, lf2);
+                sure_texels(p.u2, p.d3, res, le3, ls3, lf3);
                 uint unsure_blocks = 0u;
                 FOR_BLOCKS(SURE_BLOCK)
                 // The pair's entries, one per block with unsure bits, after

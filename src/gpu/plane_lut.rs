@@ -2,15 +2,18 @@
 //! (octahedral normal, distance) in the light's normalized frame, the bits
 //! of the light samples behind it, one `[u32; 4]` per 128-sample block.
 //! Approximate mode: the bits of the texel's own plane (shader
-//! `plane_lut_build.comp`, one invocation per texel). Look-up mode: two
-//! masks per texel, the samples behind every plane of the texel's cell and
-//! behind some (with a margin for the exact test's rounding), built on the
-//! host ([`crate::cpu::plane_lut::build_bounds_lut`]) and uploaded. It depends only
+//! `plane_lut_build.comp`, one invocation per texel). Look-up mode: the
+//! bits of the samples behind each plane of every normal cell's centre
+//! normal, the planes of a cell side by side, from which each caster's
+//! plane reads one plane below and one above it (with margins for its
+//! normal's distance to the cell's centre and the exact test's rounding),
+//! built on the host ([`crate::cpu::plane_lut::build_sure_lut`]) and
+//! uploaded. It depends only
 //! on the normalized samples and the resolution, so the last table built is
 //! kept across frames and rebuilt only when those change. CPU twin:
 //! [`crate::cpu::plane_lut`].
 
-use crate::cpu::plane_lut::build_bounds_lut_into;
+use crate::cpu::plane_lut::build_sure_lut_into;
 use crate::gpu::dispatch::{groups, RGBA32UI};
 use crate::gpu::pass_clock::PassClock;
 use crate::gpu::shaders;
@@ -144,13 +147,15 @@ impl PlaneLutPass {
             .collect();
         key.push(light.lut_resolution);
         let bounds = light.mode == SoftMode::Lut;
-        key.push(u32::from(bounds));
+        // The kind: 0 approximate mode's table, 2 look-up mode's (1 was
+        // its earlier layout, two masks per texel: such files are not read).
+        key.push(if bounds { 2 } else { 0 });
         if self.table.as_ref().is_some_and(|l| l.key == key) {
             return Ok(false);
         }
         let res = light.lut_resolution as u64;
-        // Look-up mode: two masks per texel and block (every, some).
-        let texels = res.pow(3) * light.blocks() as u64 * if bounds { 2 } else { 1 };
+        // One mask per texel and block in both modes.
+        let texels = res.pow(3) * light.blocks() as u64;
         let max_texels = ctx.info().limits.max_texel_buffer_elements as u64;
         if texels > max_texels {
             return Err(Error::InvalidInput(format!(
@@ -165,7 +170,7 @@ impl PlaneLutPass {
             // From the cache on disk: mapped as the buffer's memory where
             // the device allows it, else read straight into the buffer;
             // else built on the host in parallel, O(cells · samples) (see
-            // build_bounds_lut), into the buffer, and kept.
+            // build_sure_lut), into the buffer, and kept.
             let cache = self
                 .cache_dir
                 .as_deref()
@@ -192,7 +197,7 @@ impl PlaneLutPass {
                             return Ok(false);
                         }
                     }
-                    build_bounds_lut_into(&ys, light.lut_resolution, lut);
+                    build_sure_lut_into(&ys, light.lut_resolution, lut);
                     Ok(true)
                 })
             })?;

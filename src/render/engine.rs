@@ -283,7 +283,7 @@ impl Engine {
     /// approximate mode, per texel, then per 128-sample block, the bits of
     /// the samples behind the texel's plane (built on the GPU; for tests
     /// against [`crate::cpu::plane_lut::build_lut`]); in look-up mode the
-    /// two masks of [`crate::cpu::plane_lut::build_bounds_lut`].
+    /// table of [`crate::cpu::plane_lut::build_sure_lut`].
     pub fn plane_lut_bits(
         &mut self,
         light: &Light,
