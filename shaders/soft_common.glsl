@@ -87,6 +87,15 @@ uint lut_index(vec3 n, float d, uint res) {
     return (uint(c.z) * res + uint(c.y)) * res + uint(c.x);
 }
 
+// The centre normal of normal cell `cell` (j * res + i). Twin:
+// plane_lut::cell_normal.
+vec3 lut_cell_normal(uint cell, uint res) {
+    vec3 n;
+    float d;
+    lut_texel_plane(uvec3(cell % res, cell / res, 0u), res, n, d);
+    return n;
+}
+
 // The normal's cell of lut_index (its index with k = 0).
 uint lut_normal_cell(vec3 n, uint res) {
     float r = float(res);

@@ -170,8 +170,7 @@ float sphere_allowance(vec3 v, float inv_r) {
 // plane_lut::sure_texels.
 void sure_texels(vec3 u, float d, uint res, out uint te, out uint ts, out uint flags) {
     uint cell = lut_normal_cell(u, res);
-    vec2 c = -1.0 + (vec2(cell % res, cell / res) + 0.5) * (2.0 / float(res));
-    float delta = length(u - oct_decode(c)) * (1.0 + 1e-5) + pc.soft_light.w + SURE_SLACK;
+    float delta = length(u - lut_cell_normal(cell, res)) * (1.0 + 1e-5) + pc.soft_light.w + SURE_SLACK;
     float lo = d - delta, hi = d + delta;
     float half_res = 0.5 * float(res);
     float ke = floor((lo + 1.0) * half_res);
@@ -210,7 +209,8 @@ uint bit_count(uvec4 v) {
 
 // SURE mode: a plane's bounds in block `block`: the bits certainly behind
 // it (from its lower texel te) and possibly behind it (its upper texel ts,
-// a few texels on: mostly the same cache line), and its flags.
+// a few texels on: a second fetch, where the old layout's two adjacent
+// masks cost about one), and its flags.
 uvec4 bounds_sure(uint te, uint flags, uint block) {
     uvec4 every = texelFetch(lut_tb, int(te + block));
     return (flags & BOUND_SURE_ALL) != 0u ? uvec4(0xffffffffu) : ((flags & BOUND_SURE_NONE) != 0u ? uvec4(0u) : every);

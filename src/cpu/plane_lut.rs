@@ -168,15 +168,16 @@ pub fn build_sure_lut_into(normalized: &[Vec3], res: u32, lut: &mut [BlockBits])
         .for_each(|(j, row)| {
             // buckets[k · nb + block] for one cell at a time.
             let mut buckets = vec![[0u32; 4]; (r + 1) * nb];
+            let mut acc = vec![[0u32; 4]; nb];
             for i in 0..r {
-                buckets.iter_mut().for_each(|b| *b = [0; 4]);
+                buckets.fill([0; 4]);
+                acc.fill([0; 4]);
                 let n = cell_normal((j * r + i) as u32, res);
                 for (s, y) in normalized.iter().enumerate() {
                     let (b, word, bit) = (s / 128, (s % 128) / 32, 1u32 << (s % 32));
                     buckets[first(n.dot(*y)) * nb + b][word] |= bit;
                 }
                 let cell = &mut row[i * r * nb..(i + 1) * r * nb];
-                let mut acc = vec![[0u32; 4]; nb];
                 for k in 0..r {
                     for b in 0..nb {
                         for word in 0..4 {
