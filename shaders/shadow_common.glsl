@@ -65,9 +65,10 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 // Soft occlusion: of those, the visits whose chunk's box lies outside the
 // caster's penumbra volume (clusters_common.glsl: chunk_rule).
 #define COUNTER_CLUSTER_OUTSIDE_PENUMBRA 15
-// Soft occlusion: tests past the bounding-sphere tests of all four planes,
-// which went on to the look-ups or the per-light-sample tests (the rest of
-// the tests were rejected by an edge's plane).
+// Soft occlusion: tests past the bounding-sphere tests of all four planes
+// and the wedge rule, which went on to the look-ups or the per-light-sample
+// tests (the rest of the tests were rejected by an edge's plane or by the
+// wedge rule).
 #define COUNTER_PAST_SPHERE 16
 // Exact soft occlusion, 64-bit sums in two words each: light-sample groups
 // (soft_common.glsl, LIGHT_GROUP_SIZE) whose samples were tested one by
@@ -77,7 +78,11 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 #define COUNTER_GROUPS_TESTED_HI 18
 #define COUNTER_GROUPS_EVERY_LO 19
 #define COUNTER_GROUPS_EVERY_HI 20
-#define COUNTER_COUNT 21
+// Soft occlusion: tests that passed the four planes' sphere tests and
+// that the wedge rule (soft_occlusion.comp: wedges_miss_light) rejected
+// (in exact mode and look-up mode past one 128-sample block).
+#define COUNTER_WEDGE_REJECTED 21
+#define COUNTER_COUNT 22
 
 // Frame-wide parameters (push constants).
 struct LightPush {

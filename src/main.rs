@@ -156,6 +156,12 @@ struct RenderArgs {
     /// measuring what the clusters save) (overrides [shadows] clusters).
     #[arg(long)]
     no_clusters: bool,
+    /// Turn soft occlusion's wedge rule off (casters whose cone from a view
+    /// sample passes the light's sphere then go on to the look-ups or the
+    /// per-light-sample tests; the same result, slower: for measuring what
+    /// the rule saves) (overrides [shadows] wedge_rule).
+    #[arg(long)]
+    no_wedge_rule: bool,
     /// Use the Vulkan device whose name contains this text (also AFS_DEVICE).
     #[arg(long, env = "AFS_DEVICE")]
     device: Option<String>,
@@ -233,6 +239,9 @@ impl RenderArgs {
         }
         if self.no_clusters {
             desc.shadows.clusters = false;
+        }
+        if self.no_wedge_rule {
+            desc.shadows.wedge_rule = false;
         }
         if self.frames > 1 && self.repeat > 1 {
             return Err(Error::InvalidInput(

@@ -111,10 +111,16 @@ pub struct SoftStats {
     /// cone from the sample.
     #[serde(default)]
     pub edge_rejected_tests: u32,
-    /// Tests past those bounding-sphere tests, which went on to the
-    /// look-ups (or, in exact mode, to every light sample); with the two
-    /// above they make up all the view-sample–triangle tests
-    /// (`COUNTER_PAST_SPHERE`).
+    /// Tests past those bounding-sphere tests that the wedge rule
+    /// rejected: two of the edges' planes together leave the light's
+    /// sphere outside, where neither does alone (exact mode, and look-up
+    /// mode past one 128-sample block; `COUNTER_WEDGE_REJECTED`).
+    #[serde(default)]
+    pub wedge_rejected_tests: u32,
+    /// Tests past those bounding-sphere tests and the wedge rule, which
+    /// went on to the look-ups (or, in exact mode, to every light sample);
+    /// with the three above they make up all the view-sample–triangle
+    /// tests (`COUNTER_PAST_SPHERE`).
     #[serde(default)]
     pub past_sphere_tests: u32,
     /// Whether this run built the plane look-up texture (it is built once
@@ -212,7 +218,9 @@ impl ShadowStats {
                 plane_rejected_tests: c[counter::PLANE_REJECTED],
                 edge_rejected_tests: c[counter::TESTS]
                     .saturating_sub(c[counter::PLANE_REJECTED])
-                    .saturating_sub(c[counter::PAST_SPHERE]),
+                    .saturating_sub(c[counter::PAST_SPHERE])
+                    .saturating_sub(c[counter::WEDGE_REJECTED]),
+                wedge_rejected_tests: c[counter::WEDGE_REJECTED],
                 past_sphere_tests: c[counter::PAST_SPHERE],
                 lut_built: out.soft.as_ref().is_some_and(|s| s.lut_built),
                 unsure_bits: unsure,

@@ -1,12 +1,15 @@
 //! View-sample clusters (`gpu::clusters`) drop (caster, tile) pairs before
-//! occlusion; they must never change a result. Every case runs with the
-//! clusters on and off and the two must agree bit for bit: hard shadows'
-//! lit flags, and soft shadows' masks in every mode. The cases aim at the
+//! occlusion, and soft occlusion's wedge rule skips pairs before their
+//! look-ups or per-light-sample tests; neither may ever change a result.
+//! Every case runs with the clusters on and off (and soft ones in exact and
+//! look-up modes with the wedge rule off) and the runs must agree bit for
+//! bit: hard shadows' lit flags, and soft shadows' masks in every mode. The cases aim at the
 //! rules: boxes that straddle a caster's plane (contacts, steps), samples
 //! inside the light's bounding sphere, casters thinner than a texel, a
 //! light that intersects a closed mesh, directional and point lights. Each
-//! rule (per tile in binning, per chunk of 64 samples in soft occlusion)
-//! must have dropped pairs somewhere, or the test proves nothing.
+//! rule (per tile in binning, per chunk of 64 samples in soft occlusion,
+//! the wedge rule) must have dropped pairs somewhere, or the test proves
+//! nothing.
 
 use alias_free_shadows::bench::{bench_light, load_scene};
 use alias_free_shadows::light::{Light, LightShape};
@@ -24,7 +27,9 @@ const SIZE: u32 = 32;
 /// Lights with extent aimed at the rules, for `desc`: the bench's sphere
 /// (a tenth of its distance across), one whose sphere holds the scene's
 /// centre (samples inside it) and one centred on a vertex of the scene's
-/// first mesh (it intersects that mesh, closed or not).
+/// first mesh (it intersects that mesh, closed or not); the bench's sphere
+/// again with 256 samples (look-up mode's wedge rule works past one
+/// 128-sample block).
 fn soft_lights(desc: &SceneDescription) -> Vec<(&'static str, Light)> {
     let bench = bench_light(desc, 128).unwrap();
     let (lo, hi) = desc.scene.bounds().unwrap();
@@ -38,14 +43,22 @@ fn soft_lights(desc: &SceneDescription) -> Vec<(&'static str, Light)> {
         ("bench sphere", bench.clone()),
         ("around the centre", sphere((lo + hi) * 0.5, 0.2 * size)),
         ("through a mesh", sphere(vertex, 0.1 * size)),
+        (
+            "bench sphere, 256 samples",
+            Light {
+                samples: 256,
+                ..bench.clone()
+            },
+        ),
     ]
 }
 
 #[test]
 fn clusters_change_no_result() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
-    // Soft tests by outcome: the caster's plane, an edge's plane, past both.
-    let mut outcomes = [0u64; 3];
+    // Soft tests by outcome: the caster's plane, an edge's plane, the wedge
+    // rule, past all three.
+    let mut outcomes = [0u64; 4];
     let (mut light_side, mut behind_closed, mut penumbra, mut chunk, mut cases) =
         (0u64, 0u64, 0u64, 0u64, 0);
     for spec in [
@@ -93,18 +106,39 @@ fn clusters_change_no_result() {
 
         for (name, light) in soft_lights(&desc) {
             for mode in [SoftMode::Exact, SoftMode::Lut, SoftMode::Approx] {
-                let run = |engine: &mut Engine, clusters| {
+                // The 256-sample light is there for look-up mode's rule.
+                if light.samples > 128 && mode != SoftMode::Lut {
+                    continue;
+                }
+                let run_with = |engine: &mut Engine, clusters, wedge_rule| {
                     let settings = ShadowSettings {
                         mode,
                         clusters,
+                        wedge_rule,
                         ..Default::default()
                     };
                     engine
                         .soft_shadows(&desc.scene, eye, &view.samples, &light, &settings)
                         .unwrap()
                 };
+                let run = |engine: &mut Engine, clusters| run_with(engine, clusters, true);
                 let with = run(&mut engine, true);
                 let without = run(&mut engine, false);
+                // The wedge rule (exact mode, look-up mode past one block).
+                if mode != SoftMode::Approx {
+                    let no_wedge = run_with(&mut engine, true, false);
+                    assert_eq!(
+                        with.visible, no_wedge.visible,
+                        "{spec}, {name}, {mode:?}: masks differ without the wedge rule"
+                    );
+                    let skipped = |r: &alias_free_shadows::render::SoftShadowResult| {
+                        r.stats.soft.as_ref().unwrap().wedge_rejected_tests
+                    };
+                    assert_eq!(skipped(&no_wedge), 0, "{spec}, {name}, {mode:?}");
+                    if mode == SoftMode::Lut && light.samples <= 128 {
+                        assert_eq!(skipped(&with), 0, "one block: the rule is compiled out");
+                    }
+                }
                 assert_eq!(
                     with.visible, without.visible,
                     "{spec}, {name}, {mode:?}: masks differ"
@@ -134,19 +168,23 @@ fn clusters_change_no_result() {
                     with.stats.view_sample_triangle_tests,
                     with.stats.chunk_pairs_dropped,
                 );
-                // Every test ends at the caster's plane, at an edge's plane
-                // or past both; only those past both can block.
+                // Every test ends at the caster's plane, at an edge's plane,
+                // at the wedge rule or past all three; only those past all
+                // can block.
                 for run in [&with, &without] {
                     let (st, soft) = (&run.stats, run.stats.soft.as_ref().unwrap());
                     assert!(
-                        soft.plane_rejected_tests as u64 + soft.past_sphere_tests as u64
+                        soft.plane_rejected_tests as u64
+                            + soft.wedge_rejected_tests as u64
+                            + soft.past_sphere_tests as u64
                             <= st.view_sample_triangle_tests as u64
                             && soft.blocking_tests <= soft.past_sphere_tests,
                         "{spec}, {name}, {mode:?}: {soft:?}"
                     );
                     outcomes[0] += soft.plane_rejected_tests as u64;
                     outcomes[1] += soft.edge_rejected_tests as u64;
-                    outcomes[2] += soft.past_sphere_tests as u64;
+                    outcomes[2] += soft.wedge_rejected_tests as u64;
+                    outcomes[3] += soft.past_sphere_tests as u64;
                 }
                 chunk += with.stats.chunk_pairs_dropped as u64;
                 light_side += a;
@@ -164,8 +202,8 @@ fn clusters_change_no_result() {
         "every rule exercised"
     );
     eprintln!(
-        "tests: {} rejected by the caster's plane, {} by an edge's plane, {} past both",
-        outcomes[0], outcomes[1], outcomes[2]
+        "tests: {} rejected by the caster's plane, {} by an edge's plane, {} by the wedge rule, {} past all three",
+        outcomes[0], outcomes[1], outcomes[2], outcomes[3]
     );
     assert!(outcomes.iter().all(|&n| n > 0), "every test outcome seen");
     engine.context().check_validation().unwrap();

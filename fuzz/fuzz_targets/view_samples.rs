@@ -170,6 +170,7 @@ fuzz_target!(|data: &[u8]| {
         },
         lut_resolution: b.u32() % 1100,
         clusters: b.u8() % 2 == 0,
+        wedge_rule: b.u8() % 2 == 0,
     };
     let mut scene = square();
     match b.u8() % 4 {

@@ -196,6 +196,12 @@ impl ShadowPipeline {
         self.passes.clusters.enabled = on;
     }
 
+    /// Turns soft occlusion's wedge rule on or off (on by default; the
+    /// results are the same, off only to measure what it saves).
+    pub fn set_wedge_rule(&mut self, on: bool) {
+        self.passes.soft_occlusion.set_wedge_rule(on);
+    }
+
     /// Whether soft runs read the visible light-sample masks back
     /// ([`LightPasses::read_masks`]; on by default). Off, their
     /// `SoftOutput::visible` is empty and a frame skips the read-back.

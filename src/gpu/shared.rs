@@ -196,8 +196,9 @@ pub mod counter {
     /// samples leaves the whole light outside the caster's cone).
     pub const CLUSTER_OUTSIDE_PENUMBRA: usize = 15;
     /// Soft occlusion: tests past the bounding-sphere tests of all four
-    /// planes, which went on to the look-ups or the per-light-sample tests
-    /// (the other tests were rejected by an edge's plane).
+    /// planes and the wedge rule, which went on to the look-ups or the
+    /// per-light-sample tests (the other tests were rejected by an edge's
+    /// plane or by the wedge rule).
     pub const PAST_SPHERE: usize = 16;
     /// Exact soft occlusion: light-sample groups (`LIGHT_GROUP_SIZE`
     /// samples) whose samples were tested one by one, low word of a 64-bit
@@ -210,9 +211,13 @@ pub mod counter {
     pub const GROUPS_EVERY_LO: usize = 19;
     /// High word of [`GROUPS_EVERY_LO`].
     pub const GROUPS_EVERY_HI: usize = 20;
+    /// Soft occlusion: tests past the four planes' sphere tests that the
+    /// wedge rule rejected (two edges' planes together leave the light's
+    /// sphere outside; exact mode, and look-up mode past one block).
+    pub const WEDGE_REJECTED: usize = 21;
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.
-    pub const COUNT: usize = 21;
+    pub const COUNT: usize = 22;
 
     /// The (low, high) slot pairs that hold 64-bit sums (the high word
     /// right after the low one: `count_wide` in soft_occlusion.comp).
@@ -388,6 +393,7 @@ pub(crate) mod tests {
             ("GROUPS_TESTED_HI", counter::GROUPS_TESTED_HI),
             ("GROUPS_EVERY_LO", counter::GROUPS_EVERY_LO),
             ("GROUPS_EVERY_HI", counter::GROUPS_EVERY_HI),
+            ("WEDGE_REJECTED", counter::WEDGE_REJECTED),
             ("COUNT", counter::COUNT),
         ] {
             assert_eq!(

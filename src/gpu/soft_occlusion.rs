@@ -120,6 +120,9 @@ pub struct SoftOcclusionPass {
     /// entries tested and ranges of work units run (without the runs
     /// again of ranges that overflowed).
     pub unsure_listed: (u64, u32),
+    /// Whether the pipelines apply the wedge rule (specialization constant
+    /// 7, `WEDGE_RULE`).
+    wedge_rule: bool,
 }
 
 /// One of the occlusion shaders: look-up mode's (exact masks) or the
@@ -145,14 +148,20 @@ impl Kernel {
 
     /// Its pipeline, `alpha` the alpha-tested casters' round, `rotated`
     /// with the per-pixel rotation.
-    fn make(self, ctx: &GpuContext, alpha: bool, rotated: bool) -> Result<ComputePipeline> {
+    fn make(
+        self,
+        ctx: &GpuContext,
+        alpha: bool,
+        rotated: bool,
+        wedge_rule: bool,
+    ) -> Result<ComputePipeline> {
         let suffix = match (alpha, rotated) {
             (false, false) => "",
             (true, false) => "_alpha",
             (false, true) => "_rotated",
             (true, true) => "_alpha_rotated",
         };
-        let flags = (alpha, rotated);
+        let flags = (alpha, rotated, wedge_rule);
         match self {
             Kernel::Sure(b) => {
                 let name = format!("soft_occlusion_sure{b}{suffix}");
@@ -167,9 +176,11 @@ impl Kernel {
                 let spirv = shaders::SOFT_OCCLUSION_EXACT;
                 occlusion_pipeline(ctx, &name, spirv, SOFT_PAIR_CHUNK, flags)
             }
-            Kernel::Unsure => {
-                unsure_pipeline(ctx, &format!("soft_occlusion_unsure{suffix}"), flags)
-            }
+            Kernel::Unsure => unsure_pipeline(
+                ctx,
+                &format!("soft_occlusion_unsure{suffix}"),
+                (alpha, rotated),
+            ),
         }
     }
 }
@@ -182,7 +193,7 @@ impl SoftOcclusionPass {
             .flat_map(|b| [Kernel::Sure(b), Kernel::Approx(b)])
             .chain([Kernel::Exact, Kernel::Unsure]);
         let pipelines = plain
-            .map(|k| Ok(((k, false, false), k.make(ctx, false, false)?)))
+            .map(|k| Ok(((k, false, false), k.make(ctx, false, false, true)?)))
             .collect::<Result<_>>()?;
         Ok(SoftOcclusionPass {
             pipelines,
@@ -196,7 +207,17 @@ impl SoftOcclusionPass {
             no_table: GrowBuffer::storage("plane_lut_unused"),
             pixel_rotation: GrowBuffer::storage_uniform("pixel_rotation"),
             unsure_listed: (0, 0),
+            wedge_rule: true,
         })
+    }
+
+    /// Turns the wedge rule on or off: the occlusion pipelines are made
+    /// again, when next needed, with the other specialization.
+    pub fn set_wedge_rule(&mut self, on: bool) {
+        if on != self.wedge_rule {
+            self.wedge_rule = on;
+            self.pipelines.clear();
+        }
     }
 
     /// Makes the kernels that `sl` needs in the rounds that run (the
@@ -220,7 +241,7 @@ impl SoftOcclusionPass {
             if let std::collections::hash_map::Entry::Vacant(e) =
                 self.pipelines.entry((kernel, alpha, rotated))
             {
-                e.insert(kernel.make(ctx, alpha, rotated)?);
+                e.insert(kernel.make(ctx, alpha, rotated, self.wedge_rule)?);
             }
         }
         Ok(())
@@ -611,13 +632,14 @@ fn pixel_rotation_block(sl: &SoftLight) -> Vec<[u32; 4]> {
 
 /// A soft occlusion pipeline: `chunk` pairs per work unit (specialization
 /// constant 2); `alpha`: the alpha-tested casters' round (constant 5);
-/// `rotated`: the per-pixel rotation (constant 6).
+/// `rotated`: the per-pixel rotation (constant 6); `wedge_rule`: the wedge
+/// rule (constant 7).
 fn occlusion_pipeline(
     ctx: &GpuContext,
     name: &str,
     spirv: &[u32],
     chunk: (u32, u32),
-    (alpha, rotated): (bool, bool),
+    (alpha, rotated, wedge_rule): (bool, bool, bool),
 ) -> Result<ComputePipeline> {
     let sb = DescriptorKind::StorageBuffer;
     let tb = DescriptorKind::UniformTexelBuffer;
@@ -629,7 +651,12 @@ fn occlusion_pipeline(
             tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb, tb, tb, tb, tb, tb, ub, sb, tb,
         ],
         push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
-        specialization: &[chunk, (5, alpha as u32), (6, rotated as u32)],
+        specialization: &[
+            chunk,
+            (5, alpha as u32),
+            (6, rotated as u32),
+            (7, wedge_rule as u32),
+        ],
     })
 }
 

@@ -170,6 +170,7 @@ impl Engine {
         let (vs, ts) = self.user_inputs(scene, eye, samples)?;
         let texels = settings.soft_light_texels;
         self.shadows.set_clusters(settings.clusters);
+        self.shadows.set_wedge_rule(settings.wedge_rule);
         self.shadows.set_read_masks(true);
         let out = self
             .shadows

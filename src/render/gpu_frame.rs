@@ -234,6 +234,7 @@ impl Engine {
         let light = &desc.lights[k];
         let (lv, soft, texels) = frame_light(desc, k)?;
         self.shadows.set_clusters(desc.shadows.clusters);
+        self.shadows.set_wedge_rule(desc.shadows.wedge_rule);
         // A textured light's sample colours; the masks are read back only
         // for them.
         let colors = light.sample_colors();

@@ -176,6 +176,7 @@ impl Engine {
             )));
         }
         self.shadows.set_clusters(desc.shadows.clusters);
+        self.shadows.set_wedge_rule(desc.shadows.wedge_rule);
         let eye = desc.camera.eye;
         let lights = frame_lights(desc)?;
         let (_, mut tris) = gpu_inputs(&[], &gpu_triangles(&desc.scene, eye));

@@ -62,6 +62,14 @@ pub struct ShadowSettings {
     /// shadow any sample of a tile's box ([`crate::gpu::clusters`]). The
     /// results are the same either way; off only to measure what they save.
     pub clusters: bool,
+    /// The wedge rule of soft occlusion: a caster whose cone from a view
+    /// sample passes the light's bounding sphere (two edges' planes
+    /// together leave it outside, where neither does alone) is skipped
+    /// before its look-ups or per-light-sample tests (exact mode, and
+    /// look-up mode past one 128-sample block; `soft_occlusion.comp`:
+    /// `wedges_miss_light`). The results are the same either way; off
+    /// only to measure what it saves.
+    pub wedge_rule: bool,
 }
 
 impl Default for ShadowSettings {
@@ -72,6 +80,7 @@ impl Default for ShadowSettings {
             mode: SoftMode::Lut,
             lut_resolution: 128,
             clusters: true,
+            wedge_rule: true,
         }
     }
 }
