@@ -72,9 +72,7 @@ pub fn blocked_bits(
     }
     let (m, se) = edge_normals(x, [a, b, c]);
     let mut planes = vec![(ns, d0)];
-    for mi in m {
-        let u = mi * (-se / mi.dot(mi).sqrt());
-        let d = u.dot(ox) * inv_r;
+    for (u, d) in edge_planes(x, [a, b, c], origin, radius) {
         if outside(d, lo(ox.length())) {
             return Some(none);
         }

@@ -87,10 +87,13 @@ fn unit_entries(blocks: usize) -> u64 {
 
 /// The soft occlusion pipelines and the masks they write.
 pub struct SoftOcclusionPass {
-    /// Every kernel by (kernel, alpha round, per-pixel rotation)
-    /// (specialization constants `ALPHA` and `ROTATION`): the plain ones
-    /// made up front, the others when a light first needs them.
-    pipelines: HashMap<(Kernel, bool, bool), ComputePipeline>,
+    /// Every kernel by (kernel, alpha round, per-pixel rotation, wedge
+    /// rule) (specialization constants `ALPHA`, `ROTATION` and
+    /// `WEDGE_RULE`): the plain ones made up front, the others when a light
+    /// first needs them. Kept for the pass's life, so that a command buffer
+    /// recorded before the wedge rule was turned off or on still holds
+    /// live pipelines.
+    pipelines: HashMap<(Kernel, bool, bool, bool), ComputePipeline>,
     /// Look-up mode: (slot, triangle, block) and unsure bits per entry
     /// (32 B), in [`UNSURE_SEGMENTS`] segments, kept across frames.
     unsure_list: GrowBuffer,
@@ -193,7 +196,7 @@ impl SoftOcclusionPass {
             .flat_map(|b| [Kernel::Sure(b), Kernel::Approx(b)])
             .chain([Kernel::Exact, Kernel::Unsure]);
         let pipelines = plain
-            .map(|k| Ok(((k, false, false), k.make(ctx, false, false, true)?)))
+            .map(|k| Ok(((k, false, false, true), k.make(ctx, false, false, true)?)))
             .collect::<Result<_>>()?;
         Ok(SoftOcclusionPass {
             pipelines,
@@ -211,13 +214,10 @@ impl SoftOcclusionPass {
         })
     }
 
-    /// Turns the wedge rule on or off: the occlusion pipelines are made
-    /// again, when next needed, with the other specialization.
+    /// Turns the wedge rule on or off for the next runs (their pipelines
+    /// are made with the other specialization when first needed).
     pub fn set_wedge_rule(&mut self, on: bool) {
-        if on != self.wedge_rule {
-            self.wedge_rule = on;
-            self.pipelines.clear();
-        }
+        self.wedge_rule = on;
     }
 
     /// Makes the kernels that `sl` needs in the rounds that run (the
@@ -239,7 +239,8 @@ impl SoftOcclusionPass {
         }
         for (kernel, alpha) in want {
             if let std::collections::hash_map::Entry::Vacant(e) =
-                self.pipelines.entry((kernel, alpha, rotated))
+                self.pipelines
+                    .entry((kernel, alpha, rotated, self.wedge_rule))
             {
                 e.insert(kernel.make(ctx, alpha, rotated, self.wedge_rule)?);
             }
@@ -248,10 +249,10 @@ impl SoftOcclusionPass {
     }
 
     /// The pipeline of `kernel` in the alpha round or not, with the
-    /// per-pixel rotation or not.
+    /// per-pixel rotation or not (and the wedge rule as set).
     fn pipeline(&self, kernel: Kernel, alpha: bool, rotated: bool) -> Result<&ComputePipeline> {
         self.pipelines
-            .get(&(kernel, alpha, rotated))
+            .get(&(kernel, alpha, rotated, self.wedge_rule))
             .ok_or_else(not_made)
     }
 
