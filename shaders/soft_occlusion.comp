@@ -35,13 +35,10 @@ layout(local_size_x = 64) in;
 // segment's crossing, tested per light sample (exact mode, here; look-up
 // mode, every bit the table does not rule out goes to the unsure list).
 layout(constant_id = 5) const uint ALPHA = 0u;
-// The wedge rule (wedges_miss_light) in the first loop: it costs every
-// (sample, pair) there, and pays only where the work it saves per pair is
-// large (exact mode, look-up mode past one 128-sample block; measured:
-// ToyCar at 128 samples in look-up mode 18% slower with it). 0 turns it
-// off (ShadowSettings::wedge_rule).
+// The wedge rule (wedges_miss_light; exact masks only) in a loop of its
+// own between the first loop and the second: 0 turns it off
+// (ShadowSettings::wedge_rule).
 layout(constant_id = 7) const uint WEDGE_RULE = 1u;
-#define WEDGE_CUT (EXACT_MASKS && (EXACT != 0 || BLOCKS > 1))
 // Compiled once per variant (build.rs): EXACT=1, or LUT_BLOCKS=1..8 (the
 // light's 128-sample blocks) with SURE=0 or 1. Code of the other mode and of unused blocks
 // is compiled out, not branched over: lavapipe pays for guarded code it
@@ -585,13 +582,6 @@ void main() {
                     PairPlanes p;
                     uint rule = pair_planes_of(shuffle_pair(fetched, j - j0), texel, qb.w, x, o,
                                                inv_r, ox, lo_x, turn_back, p);
-#if WEDGE_CUT
-                    // Pairs whose two edge planes' wedge leaves the light's
-                    // sphere outside go no further (counted apart).
-                    bool wedge_miss = WEDGE_RULE != 0u && rule == PAIR_PASSED && wedges_miss_light(p, margin_x);
-                    rule = wedge_miss ? PAIR_EDGE_REJECTED : rule;
-                    wedge_rejected += wedge_miss && !full ? 1u : 0u;
-#endif
                     if (!full) {
                         // Tests in the low half, plane rejections in the high
                         // half (at most MAX_KEPT of each per invocation): one add.
@@ -600,6 +590,29 @@ void main() {
                     }
                 }
             }
+#if EXACT_MASKS
+            // The wedge rule, over the pairs that passed, in a loop of its
+            // own: each iteration recomputes a pair's planes, and the second
+            // loop then runs as often as its busiest lane's pairs left. In
+            // the first loop it cost every (sample, pair) there (ToyCar on a
+            // ground, 128 samples: 171.5 M tests for 12.1 M past the sphere
+            // tests); here it costs those past them, and the second loop's
+            // iterations fall where it rejects most (ToyCar: 2.16 -> 0.43 M
+            // for the subgroups).
+            if (WEDGE_RULE != 0u) {
+                uint candidates = full ? 0u : passed;
+                passed = 0u;
+                while (candidates != 0u) {
+                    uint j = uint(findLSB(candidates));
+                    candidates &= candidates - 1u;
+                    PairPlanes p;
+                    pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
+                    bool wedge_miss = wedges_miss_light(p, margin_x);
+                    passed |= wedge_miss ? 0u : 1u << j;
+                    wedge_rejected += wedge_miss ? 1u : 0u;
+                }
+            }
+#endif
             past_sphere += uint(bitCount(passed));
             while (passed != 0u && !full) {
                 uint j = uint(findLSB(passed));
@@ -658,10 +671,11 @@ void main() {
                 // its own groups. The margins hold the per-sample test's
                 // rounding and that of the group's own distances, so the
                 // masks are those of testing every sample (the twin does).
-                // Loop iterations per pair: at most 8 + 8 + 128 (groups,
+                // Loop iterations per pair: at most 3 + 8 + 8 + 128 (the
+                // first loop, the wedge rule's and the second; groups,
                 // candidate groups, their samples), so a unit of
                 // SOFT_PAIR_CHUNK = 256 pairs stays within lavapipe's 65535
-                // per invocation (shadow_common.glsl) at about 37 K.
+                // per invocation (shadow_common.glsl) at about 38 K.
                 uint base = first_block * 128u;
                 uint n_block = min(pc.soft.y - min(base, pc.soft.y), 128u);
                 uint n_groups = (n_block + LIGHT_GROUP_SIZE - 1u) / LIGHT_GROUP_SIZE;
@@ -738,7 +752,7 @@ void main() {
         atomicAdd(counters[COUNTER_CLUSTER_CHUNK], sum_dropped);
         atomicAdd(counters[COUNTER_CLUSTER_OUTSIDE_PENUMBRA], sum_penumbra);
     }
-#if WEDGE_CUT
+#if EXACT_MASKS
     uint sum_wedge = subgroupAdd(wedge_rejected);
     if (subgroupElect() && sum_wedge != 0u) {
         atomicAdd(counters[COUNTER_WEDGE_REJECTED], sum_wedge);

@@ -28,8 +28,8 @@ const SIZE: u32 = 32;
 /// (a tenth of its distance across), one whose sphere holds the scene's
 /// centre (samples inside it) and one centred on a vertex of the scene's
 /// first mesh (it intersects that mesh, closed or not); the bench's sphere
-/// again with 256 samples (look-up mode's wedge rule works past one
-/// 128-sample block).
+/// again with 256 samples (look-up mode's shader for two 128-sample
+/// blocks, the wedge rule's too).
 fn soft_lights(desc: &SceneDescription) -> Vec<(&'static str, Light)> {
     let bench = bench_light(desc, 128).unwrap();
     let (lo, hi) = desc.scene.bounds().unwrap();
@@ -106,7 +106,7 @@ fn clusters_change_no_result() {
 
         for (name, light) in soft_lights(&desc) {
             for mode in [SoftMode::Exact, SoftMode::Lut, SoftMode::Approx] {
-                // The 256-sample light is there for look-up mode's rule.
+                // The 256-sample light is there for look-up mode's two-block shader.
                 if light.samples > 128 && mode != SoftMode::Lut {
                     continue;
                 }
@@ -124,7 +124,7 @@ fn clusters_change_no_result() {
                 let run = |engine: &mut Engine, clusters| run_with(engine, clusters, true);
                 let with = run(&mut engine, true);
                 let without = run(&mut engine, false);
-                // The wedge rule (exact mode, look-up mode past one block).
+                // The wedge rule (exact mode and look-up mode).
                 if mode != SoftMode::Approx {
                     let no_wedge = run_with(&mut engine, true, false);
                     assert_eq!(
@@ -135,9 +135,6 @@ fn clusters_change_no_result() {
                         r.stats.soft.as_ref().unwrap().wedge_rejected_tests
                     };
                     assert_eq!(skipped(&no_wedge), 0, "{spec}, {name}, {mode:?}");
-                    if mode == SoftMode::Lut && light.samples <= 128 {
-                        assert_eq!(skipped(&with), 0, "one block: the rule is compiled out");
-                    }
                 }
                 assert_eq!(
                     with.visible, without.visible,
