@@ -6,7 +6,8 @@
 // supporting plane, seen from x" and "inside the plane through x and each
 // edge of T". First the four planes are tested against the light's bounding
 // sphere (no look-up: a plane that leaves the whole sphere outside means T
-// blocks nothing); then each plane's bits are looked up in the LUT, every
+// blocks nothing), and with exact masks two edge planes together (the
+// wedge rule); then each plane's bits are looked up in the LUT, every
 // 128-sample block with the same index (LUT mode, all blocks in one pass),
 // or the light samples of one block are tested (EXACT, one pass per block;
 // by groups of 16, each group first as a sphere against the four planes),

@@ -213,7 +213,7 @@ pub mod counter {
     pub const GROUPS_EVERY_HI: usize = 20;
     /// Soft occlusion: tests past the four planes' sphere tests that the
     /// wedge rule rejected (two edges' planes together leave the light's
-    /// sphere outside; exact mode, and look-up mode past one block).
+    /// sphere outside; exact and look-up modes).
     pub const WEDGE_REJECTED: usize = 21;
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.

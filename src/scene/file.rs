@@ -65,9 +65,8 @@ pub struct ShadowSettings {
     /// The wedge rule of soft occlusion: a caster whose cone from a view
     /// sample passes the light's bounding sphere (two edges' planes
     /// together leave it outside, where neither does alone) is skipped
-    /// before its look-ups or per-light-sample tests (exact mode, and
-    /// look-up mode past one 128-sample block; `soft_occlusion.comp`:
-    /// `wedges_miss_light`). The results are the same either way; off
+    /// before its look-ups or per-light-sample tests (exact and look-up
+    /// modes; `soft_occlusion.comp`: `wedges_miss_light`). The results are the same either way; off
     /// only to measure what it saves.
     pub wedge_rule: bool,
 }
