@@ -24,7 +24,9 @@ layout(constant_id = 2) const uint OCC_PAIR_CHUNK = 64u;
 // The occlusion passes take their pairs in windows of PAIR_WINDOW, in two
 // loops: the cheap rules for every pair of the window, which leave a
 // bitmask of the pairs that pass, then the expensive work for those only
-// (a findLSB loop over the mask). On lavapipe a lane's `continue` or `if`
+// (a findLSB loop over the mask; soft occlusion with exact masks first
+// narrows the mask by the wedge rule in a findLSB loop of its own). On
+// lavapipe a lane's `continue` or `if`
 // only masks it, so a loop body costs its whole length whenever any lane
 // of the subgroup runs it; only a loop's trip count saves time. Most
 // (sample, pair) combinations fail the cheap rules.

@@ -557,9 +557,10 @@ void main() {
 #endif
         FOR_BLOCKS(ACC_BLOCK)
         // Per window (PAIR_WINDOW, shadow_common.glsl): the cheap rules of
-        // pair_planes for each pair, then the look-ups (or exact tests) for
-        // the pairs that passed. The second loop computes a pair's planes
-        // again rather than keep a window of them per lane.
+        // pair_planes for each pair, with exact masks the wedge rule for
+        // the pairs that passed, then the look-ups (or exact tests) for
+        // those left. The later loops compute a pair's planes again rather
+        // than keep a window of them per lane.
         // Lanes without a sample take part in the first loop's fetches
         // (below) and count nothing.
         bool full = !un.has_sample;
