@@ -26,10 +26,10 @@ layout(constant_id = 2) const uint OCC_PAIR_CHUNK = 64u;
 // bitmask of the pairs that pass, then the expensive work for those only
 // (a findLSB loop over the mask; soft occlusion with exact masks first
 // narrows the mask by the wedge rule in a findLSB loop of its own). On
-// lavapipe a lane's `continue` or `if`
-// only masks it, so a loop body costs its whole length whenever any lane
-// of the subgroup runs it; only a loop's trip count saves time. Most
-// (sample, pair) combinations fail the cheap rules.
+// lavapipe a lane's `continue` or `if` only masks it, so a loop body costs
+// its whole length whenever any lane of the subgroup runs it; only a
+// loop's trip count saves time. Most (sample, pair) combinations fail the
+// cheap rules.
 #define PAIR_WINDOW 32u
 layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 #define TEXEL_MARGIN 0.01
@@ -82,7 +82,7 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 #define COUNTER_GROUPS_EVERY_HI 20
 // Soft occlusion: tests that passed the four planes' sphere tests and
 // that the wedge rule (soft_occlusion.comp: wedges_miss_light) rejected
-// (in exact mode and look-up mode past one 128-sample block).
+// (exact and look-up modes).
 #define COUNTER_WEDGE_REJECTED 21
 #define COUNTER_COUNT 22
 

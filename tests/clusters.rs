@@ -59,6 +59,9 @@ fn clusters_change_no_result() {
     // Soft tests by outcome: the caster's plane, an edge's plane, the wedge
     // rule, past all three.
     let mut outcomes = [0u64; 4];
+    // The wedge rule's rejections in look-up mode's one-block shader
+    // (which once compiled the rule out).
+    let mut lut_one_block_wedge = 0u64;
     let (mut light_side, mut behind_closed, mut penumbra, mut chunk, mut cases) =
         (0u64, 0u64, 0u64, 0u64, 0);
     for spec in [
@@ -135,6 +138,9 @@ fn clusters_change_no_result() {
                         r.stats.soft.as_ref().unwrap().wedge_rejected_tests
                     };
                     assert_eq!(skipped(&no_wedge), 0, "{spec}, {name}, {mode:?}");
+                    if mode == SoftMode::Lut && light.samples <= 128 {
+                        lut_one_block_wedge += skipped(&with) as u64;
+                    }
                 }
                 assert_eq!(
                     with.visible, without.visible,
@@ -203,5 +209,9 @@ fn clusters_change_no_result() {
         outcomes[0], outcomes[1], outcomes[2], outcomes[3]
     );
     assert!(outcomes.iter().all(|&n| n > 0), "every test outcome seen");
+    assert!(
+        lut_one_block_wedge > 0,
+        "the wedge rule rejects in look-up mode at one block"
+    );
     engine.context().check_validation().unwrap();
 }
