@@ -9,7 +9,7 @@ use std::process::ExitCode;
 
 use alias_free_shadows::dump::{compare, Dump};
 use alias_free_shadows::render::{render_reference, Accumulator, Engine, Frame, FrameOptions};
-use alias_free_shadows::scene::file::{self, SceneDescription, SoftMode};
+use alias_free_shadows::scene::file::{self, LightTexels, SceneDescription, SoftMode};
 use alias_free_shadows::shade::ShadingNormals;
 use alias_free_shadows::vulkan::ContextOptions;
 use alias_free_shadows::{scene, vulkan, Error, Result};
@@ -140,9 +140,12 @@ struct RenderArgs {
     /// shadows from a glTF without a scene file.
     #[arg(long, value_name = "SPEC")]
     light: Option<String>,
-    /// Light-texel map resolution (overrides [shadows] light_texels and soft_light_texels).
-    #[arg(long)]
-    light_texels: Option<u32>,
+    /// Light-texel map resolution, texels per side of each light face:
+    /// `auto` (chosen per frame from the view samples and triangles) or a
+    /// number; only speed depends on it (overrides [shadows] light_texels
+    /// and soft_light_texels).
+    #[arg(long, value_name = "N|auto")]
+    light_texels: Option<LightTexels>,
     /// Soft-shadow mode: lut (exact masks through the look-up texture, the
     /// default), exact (every light sample tested) or approx (nearest-texel
     /// look-up) (overrides [shadows] mode).

@@ -531,14 +531,14 @@ fn every_light_field_is_checked_by_both_paths() {
     for (bad, key) in [
         (
             ShadowSettings {
-                soft_light_texels: 0,
+                soft_light_texels: 0.into(),
                 ..settings
             },
             "soft_light_texels",
         ),
         (
             ShadowSettings {
-                soft_light_texels: 1 << 20,
+                soft_light_texels: (1 << 20).into(),
                 ..settings
             },
             "soft_light_texels",

@@ -952,6 +952,35 @@ fn light_flag_replaces_the_scene_lights() {
     let light = &stats["lights"][0];
     assert_eq!(light["path"], "gpu soft shadows", "{light}");
     assert_eq!(light["stats"]["light_samples"], 8, "{light}");
+    // The light texels: auto by default, resolved per frame (a tiny frame
+    // of three triangles takes the least); a number on the command line.
+    assert_eq!(stats["settings"]["soft_light_texels"], "auto", "{stats}");
+    assert_eq!(light["stats"]["light_texels"], 32, "{light}");
+    let o = afs(
+        &[
+            "render",
+            &gltf,
+            "--ground",
+            "--light",
+            "sphere:samples=8",
+            "--width",
+            "24",
+            "--height",
+            "24",
+            "--stats",
+            "--quiet",
+            "--light-texels",
+            "40",
+            "-o",
+            "soft.png",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let stats: serde_json::Value = serde_json::from_str(&out[out.find('{').unwrap()..]).unwrap();
+    assert_eq!(stats["settings"]["soft_light_texels"], 40, "{stats}");
+    assert_eq!(stats["lights"][0]["stats"]["light_texels"], 40, "{stats}");
     expect_error(
         &["render", &gltf, "--light", "lamp", "-o", "x.png"],
         d,

@@ -8,7 +8,7 @@
 use alias_free_shadows::light::{Distribution, Light, LightSamples, LightShape};
 use alias_free_shadows::oracle::{LightTarget, Oracle, ViewSample, ViewSamples};
 use alias_free_shadows::render::Engine;
-use alias_free_shadows::scene::file::{self, SceneDescription};
+use alias_free_shadows::scene::file::{self, LightTexels, SceneDescription};
 use alias_free_shadows::scene::{Mesh, Scene};
 use alias_free_shadows::vulkan::ContextOptions;
 use glam::DVec3;
@@ -66,7 +66,7 @@ fn conform(
     engine: &mut Engine,
     desc: &SceneDescription,
     light: &Light,
-    light_texels: u32,
+    light_texels: impl Into<LightTexels>,
 ) -> (Report, Vec<Option<bool>>) {
     let eye = desc.camera.eye;
     let oracle = Oracle::new(&desc.scene.triangles(), eye);
@@ -103,11 +103,12 @@ fn check(
     name: &str,
     desc: &SceneDescription,
     light: &Light,
-    light_texels: u32,
+    light_texels: impl Into<LightTexels>,
 ) {
+    let light_texels = light_texels.into();
     let (r, _) = conform(engine, desc, light, light_texels);
     eprintln!(
-        "{name} ({}) at {}², {light_texels}² light texels: {} view samples, {} disagree, {} of them within the epsilon band",
+        "{name} ({}) at {}², light texels {light_texels}: {} view samples, {} disagree, {} of them within the epsilon band",
         format!("{:?}", light.shape).split([' ', '{']).next().unwrap_or(""),
         desc.camera.width,
         r.samples,
@@ -676,7 +677,7 @@ fn one_texel_holds_a_million_samples() {
     let want = oracle.visibility(&view, &light.light_samples(), None);
     let settings = alias_free_shadows::scene::file::ShadowSettings {
         mode: alias_free_shadows::scene::file::SoftMode::Exact,
-        soft_light_texels: 16,
+        soft_light_texels: LightTexels::Fixed(16),
         ..Default::default()
     };
     let r = engine

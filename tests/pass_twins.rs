@@ -294,20 +294,25 @@ fn soft_resolve_matches_its_twin() {
         };
         let light = common::sphere_light(&inp.desc, samples);
         let (sl, lv): (SoftLight, LightView) = render::soft_light(&light, eye, &settings).unwrap();
+        let texels = settings.soft_light_texels.resolve(
+            inp.gpu_samples.len(),
+            inp.gpu_triangles.len(),
+            true,
+        );
         let out = pipeline
             .run(
                 &ctx,
                 &inp.gpu_samples,
                 &inp.gpu_triangles,
                 &lv,
-                settings.soft_light_texels,
+                texels,
                 Some(&sl),
             )
             .unwrap();
         let LightView::Point { position } = lv else {
             panic!("a light with extent is seen from its centre")
         };
-        let tpr = settings.soft_light_texels.div_ceil(TILE);
+        let tpr = texels.div_ceil(TILE);
         let sphere = ClusterLight::Sphere(position, sl.bounds().1);
         check_bins(&ctx, &pipeline, &inp, lv.face_count(), tpr, sphere);
         let passes = pipeline.passes();

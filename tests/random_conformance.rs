@@ -482,7 +482,7 @@ fn run_case(engine: &mut Engine, c: &Case) -> Result<Tally, String> {
         _ => {
             let settings = ShadowSettings {
                 mode: SoftMode::Exact,
-                soft_light_texels: c.light_texels,
+                soft_light_texels: c.light_texels.into(),
                 ..Default::default()
             };
             let r = engine

@@ -17,7 +17,7 @@ use alias_free_shadows::cpu::light_view::LightView;
 use alias_free_shadows::light::{Distribution, Light, LightShape, MAX_LIGHT_SAMPLES};
 use alias_free_shadows::oracle::{ViewSample, NO_TRIANGLE};
 use alias_free_shadows::render::{self, gpu_triangles, light_view, soft_light};
-use alias_free_shadows::scene::file::{ShadowSettings, SoftMode};
+use alias_free_shadows::scene::file::{LightTexels, ShadowSettings, SoftMode};
 use alias_free_shadows::scene::{Mesh, Scene};
 use glam::{DVec2, DVec3, Vec3};
 use libfuzzer_sys::fuzz_target;
@@ -86,6 +86,16 @@ fn square() -> Scene {
     Scene {
         meshes: vec![Mesh::new("square", positions, vec![[0, 3, 2], [0, 2, 1]])],
         ..Default::default()
+    }
+}
+
+/// A light-texel setting: auto for one value in 64, else a fixed number
+/// (in range or not).
+fn texels(v: u32) -> LightTexels {
+    if v.is_multiple_of(64) {
+        LightTexels::Auto
+    } else {
+        LightTexels::Fixed(v % 20000)
     }
 }
 
@@ -161,8 +171,8 @@ fuzz_target!(|data: &[u8]| {
     let eye = b.vec3();
     let light = light(&mut b);
     let settings = ShadowSettings {
-        light_texels: b.u32() % 20000,
-        soft_light_texels: b.u32() % 20000,
+        light_texels: texels(b.u32()),
+        soft_light_texels: texels(b.u32()),
         mode: match b.u8() % 3 {
             0 => SoftMode::Lut,
             1 => SoftMode::Exact,

@@ -17,7 +17,7 @@ use crate::gpu::visibility_out::VisibilityOutPass;
 use crate::gpu::ShadowPipeline;
 use crate::light::Light;
 use crate::oracle::ViewSample;
-use crate::scene::file::ShadowSettings;
+use crate::scene::file::{LightTexels, ShadowSettings};
 use crate::scene::Scene;
 use crate::shade::ShadingCache;
 use crate::stats::ShadowStats;
@@ -119,21 +119,24 @@ impl Engine {
     /// positions and unit geometric normals; `triangle` = the scene triangle
     /// each lies on, or [`crate::oracle::NO_TRIANGLE`]) for a point or
     /// directional `light`. Positions are made relative to `eye` (the
-    /// camera) before they go to the GPU in `f32`.
+    /// camera) before they go to the GPU in `f32`. `light_texels`: texels
+    /// per side of each light face, a number or [`LightTexels::Auto`]
+    /// (only speed depends on it; the result says which it used).
     pub fn hard_shadows(
         &mut self,
         scene: &Scene,
         eye: DVec3,
         samples: &[Option<ViewSample>],
         light: &Light,
-        light_texels: u32,
+        light_texels: impl Into<LightTexels>,
     ) -> Result<HardShadowResult> {
         validate_shadow_inputs(scene, eye, samples, light)?;
         let lv = light_view(light, eye).ok_or_else(|| {
             Error::InvalidInput("hard shadows need a point or directional light".into())
         })?;
         let (vs, ts) = self.user_inputs(scene, eye, samples)?;
-        self.run_hard(&vs, &ts, &lv, light_texels)
+        let texels = light_texels.into().resolve(vs.len(), ts.len(), false);
+        self.run_hard(&vs, &ts, &lv, texels)
     }
 
     /// User view samples and the scene's triangles in GPU form, the
@@ -168,7 +171,7 @@ impl Engine {
         let (sl, lv) = soft_light(light, eye, settings)
             .ok_or_else(|| Error::InvalidInput("soft shadows need a light with extent".into()))?;
         let (vs, ts) = self.user_inputs(scene, eye, samples)?;
-        let texels = settings.soft_light_texels;
+        let texels = settings.soft_light_texels.resolve(vs.len(), ts.len(), true);
         self.shadows.set_clusters(settings.clusters);
         self.shadows.set_wedge_rule(settings.wedge_rule);
         self.shadows.set_read_masks(true);
@@ -201,10 +204,13 @@ impl Engine {
         view_samples: &[GpuViewSample],
         triangles: &[GpuTriangle],
         light: &LightView,
-        light_texels: u32,
+        light_texels: impl Into<LightTexels>,
     ) -> Result<HardShadowResult> {
         self.shadows.set_alpha(&self.ctx, &AlphaTables::default())?;
-        self.run_hard(view_samples, triangles, light, light_texels)
+        let texels = light_texels
+            .into()
+            .resolve(view_samples.len(), triangles.len(), false);
+        self.run_hard(view_samples, triangles, light, texels)
     }
 
     /// The hard-shadow passes on inputs in GPU form, with the alpha tables

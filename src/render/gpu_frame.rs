@@ -232,7 +232,7 @@ impl Engine {
         nt: usize,
     ) -> Result<LightResult> {
         let light = &desc.lights[k];
-        let (lv, soft, texels) = frame_light(desc, k)?;
+        let (lv, soft, texels) = frame_light(desc, k, n)?;
         self.shadows.set_clusters(desc.shadows.clusters);
         self.shadows.set_wedge_rule(desc.shadows.wedge_rule);
         // A textured light's sample colours; the masks are read back only

@@ -62,22 +62,35 @@ pub fn light_view(light: &Light, eye: DVec3) -> Option<LightView> {
     }
 }
 
-/// Light `k` of `desc` as its passes take it: where the passes look from,
-/// the samples of a light with extent (`None`: hard shadows), and the light
-/// texels per face the settings give that kind.
+/// Light `k` of `desc` as its passes take it over `view_samples` view
+/// samples: where the passes look from, the samples of a light with extent
+/// (`None`: hard shadows), and the light texels per face the settings give
+/// that kind ([`crate::scene::file::LightTexels::resolve`]).
 pub(crate) fn frame_light(
     desc: &crate::scene::file::SceneDescription,
     k: usize,
+    view_samples: usize,
 ) -> crate::Result<(LightView, Option<SoftLight>, u32)> {
     let (light, eye) = (&desc.lights[k], desc.camera.eye);
+    let triangles = desc.scene.triangle_count();
     // Point and directional lights: hard shadows; lights with extent: the
     // same passes with light-sample bitmasks.
     Ok(match light_view(light, eye) {
-        Some(lv) => (lv, None, desc.shadows.light_texels),
+        Some(lv) => {
+            let texels = desc
+                .shadows
+                .light_texels
+                .resolve(view_samples, triangles, false);
+            (lv, None, texels)
+        }
         None => {
             let (sl, lv) = soft_light(light, eye, &desc.shadows)
                 .ok_or_else(|| crate::Error::InvalidInput(format!("light {k} has no samples")))?;
-            (lv, Some(sl), desc.shadows.soft_light_texels)
+            let texels = desc
+                .shadows
+                .soft_light_texels
+                .resolve(view_samples, triangles, true);
+            (lv, Some(sl), texels)
         }
     })
 }

@@ -236,9 +236,10 @@ impl Engine {
 /// The lights of `desc` as the passes take them; lights with extent must
 /// be in exact mode.
 fn frame_lights(desc: &SceneDescription) -> Result<Vec<FrameLight>> {
+    let n = desc.camera.width as usize * desc.camera.height as usize;
     (0..desc.lights.len())
         .map(|k| {
-            let (view, soft, texels) = frame_light(desc, k)?;
+            let (view, soft, texels) = frame_light(desc, k, n)?;
             if let Some(sl) = soft.as_ref().filter(|sl| sl.mode != SoftMode::Exact) {
                 return Err(Error::InvalidInput(format!(
                     "light {k}: a recorded frame computes soft shadows in exact mode only \

@@ -42,18 +42,127 @@ impl SoftMode {
     }
 }
 
+/// A light-texel map resolution (texels per side of each light face): a
+/// fixed number, or chosen per frame from the view samples and triangles
+/// ([`LightTexels::resolve`]). Only speed depends on it: every resolution
+/// gives the same shadows (the lists and influence regions are
+/// conservative at any texel size).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum LightTexels {
+    /// Chosen per frame ([`LightTexels::resolve`]); `"auto"` in scene files
+    /// and on the command line.
+    #[default]
+    Auto,
+    /// This many texels per side, 1..=16384.
+    Fixed(u32),
+}
+
+impl LightTexels {
+    /// The least and greatest resolution [`LightTexels::Auto`] picks.
+    pub const AUTO_RANGE: (u32, u32) = (32, 1024);
+
+    /// The resolution for a frame of `view_samples` view samples and
+    /// `triangles` triangles; `soft` for a light with extent.
+    ///
+    /// Auto balances the two costs that the resolution trades: per work
+    /// unit (an 8×8-texel tile holding samples and casters: more, emptier
+    /// tiles at finer texels) and per view-sample–triangle test (each
+    /// caster's influence region is padded to whole texels: at coarser
+    /// texels every sample is tested against more small casters). With
+    /// `u ∝ r²` units and `tests ∝ N·(c + T/r²)`, the sum is least at
+    /// `r ∝ (N·T)^¼`. The factors were fitted on lavapipe (512² and 256²
+    /// frames of the built-ins, ToyCar and TransmissionTest; see
+    /// docs/status.md): 1 for hard shadows and 0.65 for soft ones, whose
+    /// influence regions are wider. The result is rounded to a multiple of
+    /// the 8-texel tile and kept in [`LightTexels::AUTO_RANGE`].
+    pub fn resolve(self, view_samples: usize, triangles: usize, soft: bool) -> u32 {
+        match self {
+            LightTexels::Fixed(r) => r,
+            LightTexels::Auto => {
+                let k = if soft { 0.65 } else { 1.0 };
+                let nt = view_samples.max(1) as f64 * triangles.max(1) as f64;
+                let r = (k * nt.powf(0.25) / 8.0).round() * 8.0;
+                let (lo, hi) = Self::AUTO_RANGE;
+                (r as u32).clamp(lo, hi)
+            }
+        }
+    }
+
+    /// Checks a fixed resolution's range; the error names `key`.
+    fn validate(self, key: &str) -> Result<()> {
+        match self {
+            LightTexels::Fixed(v) if !(1..=16384).contains(&v) => Err(Error::InvalidInput(
+                format!("shadows.{key} must be \"auto\" or in 1..=16384, got {v}"),
+            )),
+            _ => Ok(()),
+        }
+    }
+}
+
+impl From<u32> for LightTexels {
+    fn from(r: u32) -> Self {
+        LightTexels::Fixed(r)
+    }
+}
+
+impl std::fmt::Display for LightTexels {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LightTexels::Auto => f.write_str("auto"),
+            LightTexels::Fixed(r) => write!(f, "{r}"),
+        }
+    }
+}
+
+impl std::str::FromStr for LightTexels {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        if s == "auto" {
+            return Ok(LightTexels::Auto);
+        }
+        s.parse::<u32>()
+            .map(LightTexels::Fixed)
+            .map_err(|_| format!("expected \"auto\" or a number of texels, got {s:?}"))
+    }
+}
+
+impl<'de> Deserialize<'de> for LightTexels {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Number(i64),
+            Name(String),
+        }
+        match Raw::deserialize(d)? {
+            Raw::Number(n) => u32::try_from(n).map(LightTexels::Fixed).map_err(|_| {
+                serde::de::Error::custom(format!("expected \"auto\" or 1..=16384, got {n}"))
+            }),
+            Raw::Name(s) => s.parse().map_err(serde::de::Error::custom),
+        }
+    }
+}
+
+impl serde::Serialize for LightTexels {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        match self {
+            LightTexels::Auto => s.serialize_str("auto"),
+            LightTexels::Fixed(r) => s.serialize_u32(*r),
+        }
+    }
+}
+
 /// Engine settings (the `[shadows]` table); CLI flags override them.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ShadowSettings {
     /// Light-texel map resolution for point and directional lights (the
-    /// map is `light_texels`² per face).
-    pub light_texels: u32,
-    /// Light-texel map resolution for lights with extent. Coarser by
-    /// default: an influence region spans many texels anyway, and coarser
-    /// texels cost few extra tests (measured on lavapipe, `builtin:demo` 512², 128
-    /// samples: occlusion 1.14 s at 512², 0.89 s at 256², 0.94 s at 128²).
-    pub soft_light_texels: u32,
+    /// map is `light_texels`² per face; auto by default).
+    pub light_texels: LightTexels,
+    /// Light-texel map resolution for lights with extent (auto by default:
+    /// coarser than for hard shadows, since an influence region spans many
+    /// texels anyway).
+    pub soft_light_texels: LightTexels,
     /// Soft-shadow evaluation mode.
     pub mode: SoftMode,
     /// Resolution of the plane look-up texture (`lut_resolution`³).
@@ -74,8 +183,8 @@ pub struct ShadowSettings {
 impl Default for ShadowSettings {
     fn default() -> Self {
         ShadowSettings {
-            light_texels: 512,
-            soft_light_texels: 256,
+            light_texels: LightTexels::Auto,
+            soft_light_texels: LightTexels::Auto,
             mode: SoftMode::Lut,
             lut_resolution: 128,
             clusters: true,
@@ -87,16 +196,8 @@ impl Default for ShadowSettings {
 impl ShadowSettings {
     /// Checks the ranges; the error names the key.
     pub fn validate(&self) -> Result<()> {
-        for (key, v) in [
-            ("light_texels", self.light_texels),
-            ("soft_light_texels", self.soft_light_texels),
-        ] {
-            if !(1..=16384).contains(&v) {
-                return Err(Error::InvalidInput(format!(
-                    "shadows.{key} must be in 1..=16384, got {v}"
-                )));
-            }
-        }
+        self.light_texels.validate("light_texels")?;
+        self.soft_light_texels.validate("soft_light_texels")?;
         // The GPU look-up texture takes at most 512 (its build checks too).
         if !(8..=512).contains(&self.lut_resolution) {
             return Err(Error::InvalidInput(format!(
@@ -840,7 +941,61 @@ lut_resolution = 64
             }
         );
         assert_eq!(d.shadows.mode, SoftMode::Exact);
-        assert_eq!(d.shadows.light_texels, 256);
+        assert_eq!(d.shadows.light_texels, LightTexels::Fixed(256));
+        assert_eq!(d.shadows.soft_light_texels, LightTexels::Auto);
+    }
+
+    #[test]
+    fn light_texels_auto_or_a_number() {
+        for (text, want) in [
+            ("light_texels = \"auto\"", LightTexels::Auto),
+            ("light_texels = 96", LightTexels::Fixed(96)),
+        ] {
+            let d = parse(&format!("scene = \"builtin:demo\"\n[shadows]\n{text}\n")).unwrap();
+            assert_eq!(d.shadows.light_texels, want, "{text}");
+        }
+        for bad in ["\"fine\"", "-3", "0", "16385", "5000000000"] {
+            let e = parse(&format!(
+                "scene = \"builtin:demo\"\n[shadows]\nsoft_light_texels = {bad}\n"
+            ))
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains("soft_light_texels"), "{bad}: {e}");
+        }
+        assert_eq!("auto".parse::<LightTexels>(), Ok(LightTexels::Auto));
+        assert_eq!("64".parse::<LightTexels>(), Ok(LightTexels::Fixed(64)));
+        assert!("sixty".parse::<LightTexels>().is_err());
+        for t in [LightTexels::Auto, LightTexels::Fixed(40)] {
+            assert_eq!(t.to_string().parse::<LightTexels>(), Ok(t));
+        }
+    }
+
+    #[test]
+    fn auto_light_texels_follow_samples_and_triangles() {
+        let (lo, hi) = LightTexels::AUTO_RANGE;
+        assert_eq!(LightTexels::Fixed(7).resolve(1 << 20, 1 << 20, false), 7);
+        // A 512² frame of 5 000 triangles (the demo) takes 192 texels for
+        // hard shadows and 120 for soft ones.
+        assert_eq!(LightTexels::Auto.resolve(512 * 512, 5000, false), 192);
+        assert_eq!(LightTexels::Auto.resolve(512 * 512, 5000, true), 120);
+        let mut last = 0;
+        for n in [0usize, 1, 100, 10_000, 1 << 20, 1 << 26, usize::MAX] {
+            for t in [0usize, 1, 1000, 100_000, 1 << 30, usize::MAX] {
+                for soft in [false, true] {
+                    let r = LightTexels::Auto.resolve(n, t, soft);
+                    assert!(
+                        (lo..=hi).contains(&r) && r.is_multiple_of(8),
+                        "{n} {t} {soft}: {r}"
+                    );
+                    let finer = LightTexels::Auto.resolve(n.saturating_mul(4), t, soft);
+                    assert!(finer >= r, "more samples, coarser: {n} {t}");
+                    let finer = LightTexels::Auto.resolve(n, t.saturating_mul(4), soft);
+                    assert!(finer >= r, "more triangles, coarser: {n} {t}");
+                }
+            }
+            last = last.max(LightTexels::Auto.resolve(n, 1 << 20, false));
+        }
+        assert_eq!(last, hi);
     }
 
     #[test]
