@@ -180,7 +180,8 @@ struct RenderArgs {
     #[arg(long)]
     quiet: bool,
     /// Render the frame this many times and report the last one (the first
-    /// frame pays for pipeline compilation; later ones show warm timings).
+    /// frame pays for pipeline compilation; later ones show warm timings,
+    /// whose median, least and greatest times are printed too).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
     repeat: u32,
     /// Temporal jitter (paper §4.2): render this many frames, each with
@@ -371,7 +372,7 @@ fn write_outputs(args: &RenderArgs, frame: &Frame) -> Result<()> {
     written
 }
 
-fn report(desc: &SceneDescription, frame: &Frame, args: &RenderArgs) {
+fn report(desc: &SceneDescription, frame: &Frame, args: &RenderArgs, warm_ms: &[f64]) {
     println!(
         "{}: {} triangles, {}x{} pixels, {} light(s)",
         desc.name,
@@ -394,6 +395,19 @@ fn report(desc: &SceneDescription, frame: &Frame, args: &RenderArgs) {
         frame.stats.total_ms(),
         frame.stats.device()
     );
+    if !warm_ms.is_empty() {
+        // One frame varies by tens of percent on a shared CPU: the median
+        // of the warm ones is the number to compare.
+        let mut t = warm_ms.to_vec();
+        t.sort_by(f64::total_cmp);
+        println!(
+            "  {} warm frames: median {:.1} ms, min {:.1}, max {:.1}",
+            t.len(),
+            t[t.len() / 2],
+            t[0],
+            t[t.len() - 1]
+        );
+    }
     println!("  wrote {}", args.output.display());
     if let Some(d) = &args.dump {
         println!("  wrote dump to {}", d.display());
@@ -456,17 +470,21 @@ fn run(cli: Cli) -> Result<()> {
             let options = FrameOptions {
                 progress: !args.quiet,
             };
+            // The frames after the first (`--repeat`): the first pays for
+            // pipeline compilation.
+            let mut warm_ms = Vec::new();
             let frame = if args.frames > 1 {
                 accumulate(&args, &desc, |d, f| engine.render_jittered(d, f, options))?
             } else {
                 let mut frame = engine.render(&desc, options)?;
                 for _ in 1..args.repeat {
                     frame = engine.render(&desc, options)?;
+                    warm_ms.push(frame.stats.total_ms());
                 }
                 frame
             };
             write_outputs(&args, &frame)?;
-            report(&desc, &frame, &args);
+            report(&desc, &frame, &args, &warm_ms);
         }
         Command::Reference(args) => {
             let desc = args.scene()?;
@@ -480,7 +498,7 @@ fn run(cli: Cli) -> Result<()> {
                 render_reference(&desc, options)?
             };
             write_outputs(&args, &frame)?;
-            report(&desc, &frame, &args);
+            report(&desc, &frame, &args, &[]);
         }
         Command::Compare {
             dump_a,
