@@ -150,6 +150,7 @@ pub fn user_gpu_triangles(
 /// budget of triangle tests; past it, any sample in the box). Treating a
 /// closed mesh as open is always correct, only slower.
 fn closed_meshes_seen_from_inside(scene: &Scene, samples: &[Option<ViewSample>]) -> Vec<bool> {
+    use rayon::prelude::*;
     let mut opened = vec![false; scene.meshes.len()];
     let boxes: Vec<Option<(DVec3, DVec3)>> = scene
         .meshes
@@ -172,19 +173,37 @@ fn closed_meshes_seen_from_inside(scene: &Scene, samples: &[Option<ViewSample>])
     if boxes.iter().all(Option::is_none) {
         return opened;
     }
-    let triangles = scene.triangles();
+    let tests = scene.alpha_tests();
+    // A global triangle index's mesh and index in it, without building
+    // every triangle (Scene::triangles makes their alpha tests too).
+    let firsts: Vec<usize> = scene
+        .meshes
+        .iter()
+        .scan(0, |n, m| {
+            let first = *n;
+            *n += m.indices.len();
+            Some(first)
+        })
+        .collect();
+    let mesh_triangle = |t: usize| {
+        let m = firsts.partition_point(|&f| f <= t).checked_sub(1)?;
+        let local = t - firsts[m];
+        (local < scene.meshes[m].indices.len()).then_some((m, local))
+    };
     // Per closed mesh, samples in its box not on its own surface: tested
     // for containment exactly where that is cheap, else the mesh opens.
     let mut in_box: Vec<Vec<DVec3>> = vec![Vec::new(); scene.meshes.len()];
     for s in samples.iter().flatten() {
         // The closed mesh the sample lies on, seen from the outside.
         let mut own = None;
-        if let Some(t) = triangles.get(s.triangle as usize).filter(|t| t.closed) {
-            let v = t.vertices;
+        if let Some((m, local)) = mesh_triangle(s.triangle as usize)
+            .filter(|&(m, _)| crate::scene::casts_closed(&scene.meshes[m], &tests[m]))
+        {
+            let v = scene.meshes[m].triangle(local);
             if (v[1] - v[0]).cross(v[2] - v[0]).dot(s.normal) > 0.0 {
-                own = Some(t.mesh as usize);
+                own = Some(m);
             } else {
-                opened[t.mesh as usize] = true;
+                opened[m] = true;
             }
         }
         for (m, b) in boxes.iter().enumerate() {
@@ -205,7 +224,7 @@ fn closed_meshes_seen_from_inside(scene: &Scene, samples: &[Option<ViewSample>])
         // A sample on or just outside the surface (f32 rounding) may count
         // as inside: that only opens the mesh, which is always correct.
         opened[m] = points.len().saturating_mul(mesh.indices.len()) > CONTAINMENT_BUDGET
-            || points.iter().any(|p| mesh.contains(*p));
+            || points.par_iter().any(|p| mesh.contains(*p));
     }
     opened
 }
@@ -232,4 +251,63 @@ pub fn gpu_triangles(scene: &Scene, eye: DVec3) -> Vec<([Vec3; 3], bool)> {
         }));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::oracle::NO_TRIANGLE;
+    use crate::scene::Mesh;
+
+    /// An empty mesh, an open ground (global triangles 0 and 1) and a
+    /// closed tetrahedron (2 to 5; 5 is its slanted face).
+    fn scene() -> Scene {
+        let ground = Mesh::new(
+            "ground",
+            vec![
+                DVec3::new(-2.0, -2.0, 0.0),
+                DVec3::new(2.0, -2.0, 0.0),
+                DVec3::new(2.0, 2.0, 0.0),
+                DVec3::new(-2.0, 2.0, 0.0),
+            ],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
+        let tetra = Mesh::new(
+            "tetra",
+            vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z],
+            vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        );
+        assert!(!ground.closed && tetra.closed);
+        Scene {
+            meshes: vec![Mesh::new("nothing", Vec::new(), Vec::new()), ground, tetra],
+            ..Default::default()
+        }
+    }
+
+    fn sample(position: DVec3, normal: DVec3, triangle: u32) -> Option<ViewSample> {
+        Some(ViewSample {
+            position,
+            normal,
+            triangle,
+        })
+    }
+
+    #[test]
+    fn closed_meshes_open_only_where_a_sample_sees_them_from_inside() {
+        let scene = scene();
+        let out = DVec3::ONE.normalize();
+        let on_face = sample(DVec3::splat(1.0 / 3.0), out, 5);
+        let on_ground = sample(DVec3::new(0.9, 0.9, 0.0), DVec3::Z, 1);
+        let inside = sample(DVec3::splat(0.1), out, NO_TRIANGLE);
+        let face_from_inside = sample(DVec3::splat(1.0 / 3.0), -out, 5);
+        let past_the_end = sample(DVec3::splat(5.0), out, 6);
+        for (samples, want) in [
+            (vec![on_face, on_ground, None, past_the_end], false),
+            (vec![on_face, on_ground, inside], true),
+            (vec![on_ground, face_from_inside], true),
+        ] {
+            let opened = closed_meshes_seen_from_inside(&scene, &samples);
+            assert_eq!(opened, vec![false, false, want], "{samples:?}");
+        }
+    }
 }
