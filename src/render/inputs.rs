@@ -150,6 +150,7 @@ pub fn user_gpu_triangles(
 /// budget of triangle tests; past it, any sample in the box). Treating a
 /// closed mesh as open is always correct, only slower.
 fn closed_meshes_seen_from_inside(scene: &Scene, samples: &[Option<ViewSample>]) -> Vec<bool> {
+    use crate::scene::containment::ContainmentGrid;
     use rayon::prelude::*;
     let mut opened = vec![false; scene.meshes.len()];
     let boxes: Vec<Option<(DVec3, DVec3)>> = scene
@@ -224,7 +225,12 @@ fn closed_meshes_seen_from_inside(scene: &Scene, samples: &[Option<ViewSample>])
         // A sample on or just outside the surface (f32 rounding) may count
         // as inside: that only opens the mesh, which is always correct.
         opened[m] = points.len().saturating_mul(mesh.indices.len()) > CONTAINMENT_BUDGET
-            || points.par_iter().any(|p| mesh.contains(*p));
+            || if points.len() > 16 {
+                let grid = ContainmentGrid::new(mesh);
+                points.par_iter().any(|p| grid.contains(*p))
+            } else {
+                points.iter().any(|p| mesh.contains(*p))
+            };
     }
     opened
 }

@@ -9,6 +9,7 @@
 //! both the oracle and the GPU passes make.
 
 pub mod builtin;
+pub mod containment;
 pub mod file;
 pub mod gltf_load;
 pub mod gltf_write;
@@ -177,11 +178,9 @@ impl Mesh {
     /// direction, which a closed surface crosses an odd number of times
     /// from an inside point. O(triangles).
     pub fn contains(&self, p: DVec3) -> bool {
-        let dir =
-            DVec3::new(0.577_350_3, 0.577_350_2, 0.577_350_4) + DVec3::new(1.3e-3, -0.7e-3, 0.2e-3);
         self.closed
             && (0..self.indices.len())
-                .filter(|&t| ray_crosses(p, dir, self.triangle(t)))
+                .filter(|&t| ray_crosses(p, CONTAINMENT_RAY, self.triangle(t)))
                 .count()
                 % 2
                 == 1
@@ -655,7 +654,15 @@ pub(crate) fn casts_closed(m: &Mesh, test: &Option<std::sync::Arc<AlphaTest>>) -
 }
 
 /// Whether the ray p + t·dir, t > 0, crosses triangle `v` (Möller–Trumbore).
-fn ray_crosses(p: DVec3, dir: DVec3, v: [DVec3; 3]) -> bool {
+/// The direction of [`Mesh::contains`]'s parity ray: oblique, so that few
+/// surfaces lie along it.
+pub(crate) const CONTAINMENT_RAY: DVec3 = DVec3::new(
+    0.577_350_3 + 1.3e-3,
+    0.577_350_2 - 0.7e-3,
+    0.577_350_4 + 0.2e-3,
+);
+
+pub(crate) fn ray_crosses(p: DVec3, dir: DVec3, v: [DVec3; 3]) -> bool {
     let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
     let h = dir.cross(e2);
     let det = e1.dot(h);
