@@ -928,10 +928,12 @@ fn light_flag_replaces_the_scene_lights() {
         f32_bytes(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]),
     );
     let gltf = write(d, "tri.gltf", triangle_gltf("tri.bin"));
-    let o = afs(
-        &[
+    // A soft frame of the triangle on a ground, with `extra` flags: its
+    // statistics.
+    let soft_stats = |extra: &[&str]| -> serde_json::Value {
+        let mut args = vec![
             "render",
-            &gltf,
+            gltf.as_str(),
             "--ground",
             "--light",
             "sphere:samples=8",
@@ -943,12 +945,14 @@ fn light_flag_replaces_the_scene_lights() {
             "--quiet",
             "-o",
             "soft.png",
-        ],
-        d,
-    );
-    assert!(o.status.success(), "{}", text(&o));
-    let out = String::from_utf8_lossy(&o.stdout);
-    let stats: serde_json::Value = serde_json::from_str(&out[out.find('{').unwrap()..]).unwrap();
+        ];
+        args.extend_from_slice(extra);
+        let o = afs(&args, d);
+        assert!(o.status.success(), "{}", text(&o));
+        let out = String::from_utf8_lossy(&o.stdout);
+        serde_json::from_str(&out[out.find('{').unwrap()..]).unwrap()
+    };
+    let stats = soft_stats(&[]);
     let light = &stats["lights"][0];
     assert_eq!(light["path"], "gpu soft shadows", "{light}");
     assert_eq!(light["stats"]["light_samples"], 8, "{light}");
@@ -956,29 +960,7 @@ fn light_flag_replaces_the_scene_lights() {
     // of three triangles takes the least); a number on the command line.
     assert_eq!(stats["settings"]["soft_light_texels"], "auto", "{stats}");
     assert_eq!(light["stats"]["light_texels"], 32, "{light}");
-    let o = afs(
-        &[
-            "render",
-            &gltf,
-            "--ground",
-            "--light",
-            "sphere:samples=8",
-            "--width",
-            "24",
-            "--height",
-            "24",
-            "--stats",
-            "--quiet",
-            "--light-texels",
-            "40",
-            "-o",
-            "soft.png",
-        ],
-        d,
-    );
-    assert!(o.status.success(), "{}", text(&o));
-    let out = String::from_utf8_lossy(&o.stdout);
-    let stats: serde_json::Value = serde_json::from_str(&out[out.find('{').unwrap()..]).unwrap();
+    let stats = soft_stats(&["--light-texels", "40"]);
     assert_eq!(stats["settings"]["soft_light_texels"], 40, "{stats}");
     assert_eq!(stats["lights"][0]["stats"]["light_texels"], 40, "{stats}");
     expect_error(
