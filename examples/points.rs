@@ -4,7 +4,8 @@
 use alias_free_shadows::light::{Distribution, Light, LightShape};
 use alias_free_shadows::oracle::ViewSample;
 use alias_free_shadows::render::Engine;
-use alias_free_shadows::scene::{file::ShadowSettings, Mesh, Scene};
+use alias_free_shadows::scene::file::{LightTexels, ShadowSettings};
+use alias_free_shadows::scene::{Mesh, Scene};
 use alias_free_shadows::vulkan::ContextOptions;
 use glam::DVec3;
 
@@ -54,7 +55,7 @@ fn main() -> alias_free_shadows::Result<()> {
         eye,
         &points,
         &light(LightShape::Point { position: centre }, 1),
-        512,
+        LightTexels::Auto,
     )?;
     let sphere = LightShape::Sphere {
         position: centre,

@@ -29,7 +29,8 @@
 //! use alias_free_shadows::light::{Distribution, Light, LightShape};
 //! use alias_free_shadows::oracle::ViewSample;
 //! use alias_free_shadows::render::Engine;
-//! use alias_free_shadows::scene::{file::ShadowSettings, Mesh, Scene};
+//! use alias_free_shadows::scene::file::{LightTexels, ShadowSettings};
+//! use alias_free_shadows::scene::{Mesh, Scene};
 //! use alias_free_shadows::vulkan::ContextOptions;
 //! use glam::DVec3;
 //! # fn main() -> alias_free_shadows::Result<()> {
@@ -54,7 +55,8 @@
 //! let centre = DVec3::new(0.3, 3.0, 0.0);
 //!
 //! let point = light(LightShape::Point { position: centre }, 1);
-//! let hard = engine.hard_shadows(&scene, eye, &points, &point, 512)?;
+//! // The light-texel map: chosen for the points and triangles (or a number).
+//! let hard = engine.hard_shadows(&scene, eye, &points, &point, LightTexels::Auto)?;
 //! assert_eq!(hard.lit, [Some(false), Some(false), Some(true), Some(true)]);
 //!
 //! let sphere = light(LightShape::Sphere { position: centre, radius: 0.5 }, 128);
