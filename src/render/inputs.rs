@@ -157,15 +157,10 @@ fn closed_meshes_seen_from_inside(scene: &Scene, samples: &[Option<ViewSample>])
         .meshes
         .iter()
         .map(|m| {
-            if !m.closed || m.positions.is_empty() {
+            if !m.closed {
                 return None;
             }
-            let (lo, hi) = m
-                .positions
-                .iter()
-                .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
-                    (lo.min(*p), hi.max(*p))
-                });
+            let (lo, hi) = m.bounds()?;
             // A margin for samples rounded just outside the surface.
             let margin = (hi - lo).length() * 1e-6 + lo.abs().max(hi.abs()).max_element() * 1e-12;
             Some((lo - margin, hi + margin))

@@ -43,15 +43,11 @@ impl<'a> ContainmentGrid<'a> {
         // Padding of every shadow: far above the crossing test's rounding
         // for a triangle that is not nearly parallel to the ray (about
         // 1e-9 of the coordinates' size; see `bin`), far below any cell.
-        let (mut blo, mut bhi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for p in &mesh.positions {
-            blo = blo.min(*p);
-            bhi = bhi.max(*p);
-        }
-        let scale = if n > 0 {
-            (bhi - blo).length() + blo.abs().max(bhi.abs()).max_element()
-        } else {
-            0.0
+        let scale = match mesh.bounds() {
+            Some((blo, bhi)) if n > 0 => {
+                (bhi - blo).length() + blo.abs().max(bhi.abs()).max_element()
+            }
+            _ => 0.0,
         };
         let pad = 1e-6 * scale;
         let mut always = Vec::new();
@@ -182,11 +178,7 @@ mod tests {
             for mesh in desc.scene.meshes.iter().filter(|m| m.closed).take(3) {
                 meshes += 1;
                 let grid = ContainmentGrid::new(mesh);
-                let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-                for p in &mesh.positions {
-                    lo = lo.min(*p);
-                    hi = hi.max(*p);
-                }
+                let (lo, hi) = mesh.bounds().unwrap();
                 let mut points: Vec<DVec3> = (0..400)
                     .map(|_| {
                         let t = DVec3::new(next(), next(), next()) * 1.2 - 0.1;

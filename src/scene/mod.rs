@@ -200,6 +200,14 @@ impl Mesh {
         }
     }
 
+    /// World-space bounding box of its positions (min, max); `None` when it
+    /// has none.
+    pub fn bounds(&self) -> Option<(DVec3, DVec3)> {
+        let mut it = self.positions.iter();
+        let first = *it.next()?;
+        Some(it.fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))))
+    }
+
     /// The three world-space corners of triangle `i`.
     pub fn triangle(&self, i: usize) -> [DVec3; 3] {
         let [a, b, c] = self.indices[i];
@@ -570,9 +578,10 @@ impl Scene {
 
     /// World-space bounding box (min, max); `None` for an empty scene.
     pub fn bounds(&self) -> Option<(DVec3, DVec3)> {
-        let mut it = self.meshes.iter().flat_map(|m| m.positions.iter());
-        let first = *it.next()?;
-        Some(it.fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))))
+        self.meshes
+            .iter()
+            .filter_map(Mesh::bounds)
+            .reduce(|(lo, hi), (l, h)| (lo.min(l), hi.max(h)))
     }
 
     /// Every triangle of the scene flattened, in mesh order: the global
