@@ -84,7 +84,11 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
 // that the wedge rule (soft_occlusion.comp: wedges_miss_light) rejected
 // (exact and look-up modes).
 #define COUNTER_WEDGE_REJECTED 21
-#define COUNTER_COUNT 22
+// Soft occlusion: (view sample, work unit) visits, once per block pass in
+// exact mode. It does not depend on the order of the lists' atomics (the
+// tests and the chunks' counts do), so a frame counts the same every run.
+#define COUNTER_SAMPLE_VISITS 22
+#define COUNTER_COUNT 23
 
 // Frame-wide parameters (push constants).
 struct LightPush {

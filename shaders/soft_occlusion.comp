@@ -750,6 +750,10 @@ void main() {
     uint sum_penumbra = subgroupAdd(chunk_penumbra);
     uint sum_plane = subgroupAdd(plane_rejected);
     uint sum_past = subgroupAdd(past_sphere);
+    uint sum_visits = subgroupBallotBitCount(subgroupBallot(un.has_sample));
+    if (subgroupElect() && sum_visits != 0u) {
+        atomicAdd(counters[COUNTER_SAMPLE_VISITS], sum_visits);
+    }
     if (subgroupElect() && sum_dropped != 0u) {
         atomicAdd(counters[COUNTER_CLUSTER_CHUNK], sum_dropped);
         atomicAdd(counters[COUNTER_CLUSTER_OUTSIDE_PENUMBRA], sum_penumbra);

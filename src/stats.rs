@@ -123,6 +123,13 @@ pub struct SoftStats {
     /// tests (`COUNTER_PAST_SPHERE`).
     #[serde(default)]
     pub past_sphere_tests: u32,
+    /// (View sample, work unit) visits of the occlusion passes: a sample
+    /// whose texel's pairs span several units is visited once per unit
+    /// (and once per block pass in exact mode). Unlike the tests, the same
+    /// in every run of a frame: it does not depend on the order in which
+    /// atomics filled the lists (`COUNTER_SAMPLE_VISITS`).
+    #[serde(default)]
+    pub sample_unit_visits: u32,
     /// Whether this run built the plane look-up texture (it is built once
     /// per light shape and reused: its time, `ms.lut_build`, appears only
     /// in the frame that built it).
@@ -222,6 +229,7 @@ impl ShadowStats {
                     .saturating_sub(c[counter::WEDGE_REJECTED]),
                 wedge_rejected_tests: c[counter::WEDGE_REJECTED],
                 past_sphere_tests: c[counter::PAST_SPHERE],
+                sample_unit_visits: c[counter::SAMPLE_VISITS],
                 lut_built: out.soft.as_ref().is_some_and(|s| s.lut_built),
                 unsure_bits: unsure,
                 unsure_share: unsure as f64

@@ -215,9 +215,13 @@ pub mod counter {
     /// wedge rule rejected (two edges' planes together leave the light's
     /// sphere outside; exact and look-up modes).
     pub const WEDGE_REJECTED: usize = 21;
+    /// Soft occlusion: (view sample, work unit) visits, once per block
+    /// pass in exact mode. Unlike the tests, it does not depend on the
+    /// order in which atomics filled the lists.
+    pub const SAMPLE_VISITS: usize = 22;
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.
-    pub const COUNT: usize = 22;
+    pub const COUNT: usize = 23;
 
     /// The (low, high) slot pairs that hold 64-bit sums (the high word
     /// right after the low one: `count_wide` in soft_occlusion.comp).
@@ -394,6 +398,7 @@ pub(crate) mod tests {
             ("GROUPS_EVERY_LO", counter::GROUPS_EVERY_LO),
             ("GROUPS_EVERY_HI", counter::GROUPS_EVERY_HI),
             ("WEDGE_REJECTED", counter::WEDGE_REJECTED),
+            ("SAMPLE_VISITS", counter::SAMPLE_VISITS),
             ("COUNT", counter::COUNT),
         ] {
             assert_eq!(
