@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use crate::light::{Light, LightShape};
 use crate::oracle::ViewSamples;
-use crate::scene::Scene;
+use crate::scene::{Scene, TriangleIds};
 pub use normals::ShadingNormals;
 
 /// Ambient term so that fully shadowed surfaces are still readable.
@@ -110,22 +110,15 @@ fn from_srgb8(v: u8) -> f64 {
 /// read from the meshes themselves: no per-frame copy.
 struct Surfaces<'a> {
     scene: &'a Scene,
-    /// Global id of each mesh's first triangle.
-    first: Vec<usize>,
+    ids: TriangleIds,
 }
 
 impl<'a> Surfaces<'a> {
     fn new(scene: &'a Scene) -> Self {
-        let first = scene
-            .meshes
-            .iter()
-            .scan(0, |next, m| {
-                let here = *next;
-                *next += m.indices.len();
-                Some(here)
-            })
-            .collect();
-        Surfaces { scene, first }
+        Surfaces {
+            scene,
+            ids: scene.triangle_ids(),
+        }
     }
 
     /// Linear RGB base colour at barycentrics `bary` of triangle `t`:
@@ -133,7 +126,9 @@ impl<'a> Surfaces<'a> {
     /// sRGB decoded; glTF's UV origin is the image's top-left); grey
     /// without a material.
     fn albedo(&self, t: usize, bary: DVec3) -> [f64; 3] {
-        let m = self.first.partition_point(|&f| f <= t) - 1;
+        let Some((m, local)) = self.ids.locate(t) else {
+            return [ALBEDO; 3];
+        };
         let mesh = &self.scene.meshes[m];
         let Some(material) = mesh.material.and_then(|i| self.scene.materials.get(i)) else {
             return [ALBEDO; 3];
@@ -145,7 +140,7 @@ impl<'a> Surfaces<'a> {
             .as_ref()
             .and_then(|tex| tex.image.as_ref());
         if let (Some(image), Some(uvs)) = (image, &mesh.uvs) {
-            let [a, b, c] = mesh.indices[t - self.first[m]].map(|v| uvs[v as usize]);
+            let [a, b, c] = mesh.indices[local].map(|v| uvs[v as usize]);
             let texel = bilinear(image, a * bary.x + b * bary.y + c * bary.z);
             for (c, t) in rgb.iter_mut().zip(texel) {
                 *c *= t;

@@ -170,29 +170,17 @@ fn closed_meshes_seen_from_inside(scene: &Scene, samples: &[Option<ViewSample>])
         return opened;
     }
     let tests = scene.alpha_tests();
-    // A global triangle index's mesh and index in it, without building
-    // every triangle (Scene::triangles makes their alpha tests too).
-    let firsts: Vec<usize> = scene
-        .meshes
-        .iter()
-        .scan(0, |n, m| {
-            let first = *n;
-            *n += m.indices.len();
-            Some(first)
-        })
-        .collect();
-    let mesh_triangle = |t: usize| {
-        let m = firsts.partition_point(|&f| f <= t).checked_sub(1)?;
-        let local = t - firsts[m];
-        (local < scene.meshes[m].indices.len()).then_some((m, local))
-    };
+    // A sample's mesh without building every triangle (Scene::triangles
+    // makes their alpha tests too).
+    let ids = scene.triangle_ids();
     // Per closed mesh, samples in its box not on its own surface: tested
     // for containment exactly where that is cheap, else the mesh opens.
     let mut in_box: Vec<Vec<DVec3>> = vec![Vec::new(); scene.meshes.len()];
     for s in samples.iter().flatten() {
         // The closed mesh the sample lies on, seen from the outside.
         let mut own = None;
-        if let Some((m, local)) = mesh_triangle(s.triangle as usize)
+        if let Some((m, local)) = ids
+            .locate(s.triangle as usize)
             .filter(|&(m, _)| crate::scene::casts_closed(&scene.meshes[m], &tests[m]))
         {
             let v = scene.meshes[m].triangle(local);

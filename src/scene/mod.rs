@@ -534,6 +534,24 @@ impl Scene {
         self.meshes.iter().map(|m| m.indices.len()).sum()
     }
 
+    /// Where each global triangle id ([`Scene::triangles`] order) lies,
+    /// without building the triangles.
+    pub fn triangle_ids(&self) -> TriangleIds {
+        let first = self
+            .meshes
+            .iter()
+            .scan(0, |next, m| {
+                let here = *next;
+                *next += m.indices.len();
+                Some(here)
+            })
+            .collect();
+        TriangleIds {
+            first,
+            count: self.triangle_count(),
+        }
+    }
+
     /// Checks what the shadow passes and [`Scene::triangles`] rely on:
     /// every vertex is finite and within [`MAX_RELATIVE_COORDINATE`] of
     /// `eye` (the camera) along each axis, and every triangle's indices name
@@ -692,6 +710,28 @@ pub(crate) fn ray_crosses(p: DVec3, dir: DVec3, v: [DVec3; 3]) -> bool {
     f * e2.dot(q) > 0.0
 }
 
+/// A scene's global triangle ids mapped to their meshes
+/// ([`Scene::triangle_ids`]).
+pub struct TriangleIds {
+    /// Global id of each mesh's first triangle.
+    first: Vec<usize>,
+    /// Triangles in all.
+    count: usize,
+}
+
+impl TriangleIds {
+    /// The mesh of global triangle `t` and `t`'s index in it (`None` past
+    /// the last triangle). Empty meshes share the next one's first id and
+    /// are never the answer.
+    pub fn locate(&self, t: usize) -> Option<(usize, usize)> {
+        if t >= self.count {
+            return None;
+        }
+        let m = self.first.partition_point(|&f| f <= t) - 1;
+        Some((m, t - self.first[m]))
+    }
+}
+
 /// One triangle of a flattened scene, with the facts the shadow passes need.
 #[derive(Clone, Debug)]
 pub struct SceneTriangle {
@@ -733,6 +773,36 @@ mod tests {
         ]);
         indices.push([base, base + 1, base + 2]);
         Mesh::new("m", positions, indices)
+    }
+
+    /// Global ids name the triangles in `Scene::triangles` order, empty
+    /// meshes (first, between, last) skipped, nothing past the end.
+    #[test]
+    fn triangle_ids_locate_each_mesh_triangle() {
+        let empty = || Mesh::new("empty", Vec::new(), Vec::new());
+        let scene = Scene {
+            meshes: vec![
+                empty(),
+                tetrahedra_and_a_triangle(1),
+                empty(),
+                tetrahedra_and_a_triangle(2),
+                empty(),
+            ],
+            ..Default::default()
+        };
+        let ids = scene.triangle_ids();
+        let triangles = scene.triangles();
+        assert_eq!(triangles.len(), 5 + 9);
+        for (t, tri) in triangles.iter().enumerate() {
+            let (m, local) = ids.locate(t).unwrap();
+            assert_eq!(m, tri.mesh as usize, "triangle {t}");
+            assert_eq!(
+                scene.meshes[m].triangle(local),
+                tri.vertices,
+                "triangle {t}"
+            );
+        }
+        assert_eq!(ids.locate(triangles.len()), None);
     }
 
     #[test]
