@@ -112,7 +112,7 @@ pub fn write_assets(dir: &Path) -> Result<()> {
 // Small helpers.
 
 /// SplitMix64: a tiny deterministic PRNG.
-struct Rng(u64);
+pub(crate) struct Rng(pub(crate) u64);
 
 impl Rng {
     fn next_u64(&mut self) -> u64 {
@@ -124,7 +124,7 @@ impl Rng {
     }
 
     /// Uniform in [0, 1).
-    fn f64(&mut self) -> f64 {
+    pub(crate) fn f64(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 

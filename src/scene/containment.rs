@@ -164,13 +164,8 @@ mod tests {
     /// through edges and corners): the grid's answer is the brute force's.
     #[test]
     fn the_grid_answers_as_every_triangle_does() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = builtin::Rng(0x9e37_79b9_7f4a_7c15);
+        let mut next = move || rng.f64();
         let mut meshes = 0;
         let (mut inside, mut outside) = (0, 0);
         for name in builtin::NAMES {
