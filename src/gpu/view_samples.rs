@@ -396,6 +396,16 @@ impl ViewSamplePass {
         Ok(())
     }
 
+    /// The triangles of the last [`ViewSamplePass::render`] or
+    /// [`ViewSamplePass::prepare_for_caller`], as uploaded: the shadow
+    /// passes read them from here (one upload per frame).
+    ///
+    /// # Panics
+    /// Before the first render.
+    pub fn triangles(&self) -> &Buffer {
+        self.triangles.buffer()
+    }
+
     /// The view samples of the last [`ViewSamplePass::render`].
     ///
     /// # Panics

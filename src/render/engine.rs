@@ -21,7 +21,7 @@ use crate::scene::file::{LightTexels, ShadowSettings};
 use crate::scene::Scene;
 use crate::shade::ShadingCache;
 use crate::stats::ShadowStats;
-use crate::vulkan::{ContextOptions, ExternalDevice, GpuContext, GrowBuffer};
+use crate::vulkan::{ContextOptions, ExternalDevice, GpuContext};
 use crate::{Error, Result};
 
 /// The engine: a Vulkan context and the compiled passes, reused frame after
@@ -30,8 +30,6 @@ pub struct Engine {
     pub(super) ctx: GpuContext,
     pub(super) view: ViewSamplePass,
     pub(super) shadows: ShadowPipeline,
-    /// The scene's triangles of the last frame.
-    pub(super) triangles: GrowBuffer,
     /// The shading normals of the last frame's scene.
     pub(super) shading: ShadingCache,
     /// Counts the frames whose view samples and triangles the GPU buffers
@@ -96,7 +94,6 @@ impl Engine {
             ctx,
             view,
             shadows,
-            triangles: GrowBuffer::storage("triangles"),
             shading: ShadingCache::default(),
             frame_id: 0,
             visibility_out,

@@ -107,8 +107,6 @@ impl Engine {
                 })
                 .collect(),
         };
-        let tri_buf = self.triangles.get(&self.ctx, 48 * gpu_tris.len() as u64)?;
-        self.ctx.upload_staged(tri_buf, 0, &gpu_tris)?;
         Ok(FrameView {
             view_samples: gpu_view.iter().filter(|s| s.flags != 0).count(),
             view,
@@ -241,7 +239,7 @@ impl Engine {
         self.shadows.set_read_masks(colors.is_some());
         let t = Instant::now();
         let view_buf = self.view.samples();
-        let tri_buf = self.triangles.buffer();
+        let tri_buf = self.view.triangles();
         let out = self.shadows.run_on(
             &self.ctx,
             view_buf,

@@ -186,8 +186,6 @@ impl Engine {
         let any_alpha = self.shadows.alpha().1;
         self.view
             .prepare_for_caller(&self.ctx, &desc.camera, &tris, any_alpha)?;
-        let tri_buf = self.triangles.get(&self.ctx, 48 * tris.len() as u64)?;
-        self.ctx.upload_staged(tri_buf, 0, &tris)?;
         // The GPU buffers no longer hold a frame that render_reusing knows.
         self.frame_id += 1;
         let n = desc.camera.width * desc.camera.height;
@@ -198,7 +196,7 @@ impl Engine {
             self.shadows.prepare_for_caller(
                 &self.ctx,
                 (self.view.samples(), n),
-                (self.triangles.buffer(), nt),
+                (self.view.triangles(), nt),
                 light,
                 options.binned_pairs,
             )?;
@@ -352,7 +350,7 @@ impl RecordedFrame<'_> {
             ctx,
             (rec, status),
             (samples, self.n),
-            (engine.triangles.buffer(), self.nt),
+            (engine.view.triangles(), self.nt),
             light_in,
         )?;
         let bytes = 4 * self.n as u64;
