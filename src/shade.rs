@@ -125,8 +125,9 @@ impl<'a> Surfaces<'a> {
     /// `baseColorFactor` × the base-colour texture (bilinear, repeating,
     /// sRGB decoded; glTF's UV origin is the image's top-left); grey
     /// without a material.
-    fn albedo(&self, t: usize, bary: DVec3) -> [f64; 3] {
-        let Some((m, local)) = self.ids.locate(t) else {
+    /// `located`: the triangle's [`TriangleIds::locate`].
+    fn albedo_at(&self, located: Option<(usize, usize)>, bary: DVec3) -> [f64; 3] {
+        let Some((m, local)) = located else {
             return [ALBEDO; 3];
         };
         let mesh = &self.scene.meshes[m];
@@ -163,11 +164,27 @@ fn bilinear(image: &image::RgbaImage, uv: DVec2) -> [f64; 3] {
     let (x, y) = (x.clamp(-1e15, 1e15), y.clamp(-1e15, 1e15));
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
-    let texel = |dx: i64, dy: i64| {
-        let px = (x0 as i64 + dx).rem_euclid(w) as u32;
-        let py = (y0 as i64 + dy).rem_euclid(h) as u32;
-        let p = image.get_pixel(px, py).0;
-        [from_srgb8(p[0]), from_srgb8(p[1]), from_srgb8(p[2])]
+    // The repeat; coordinates inside the image (most) need no division.
+    let wrap = |v: i64, n: i64| {
+        if (0..n).contains(&v) {
+            v
+        } else {
+            v.rem_euclid(n)
+        }
+    };
+    let (x0, y0) = (x0 as i64, y0 as i64);
+    let (xs, ys) = (
+        [wrap(x0, w), wrap(x0 + 1, w)],
+        [wrap(y0, h), wrap(y0 + 1, h)],
+    );
+    let raw = image.as_raw();
+    let texel = |dx: usize, dy: usize| {
+        let i = 4 * (ys[dy] * w + xs[dx]) as usize;
+        [
+            from_srgb8(raw[i]),
+            from_srgb8(raw[i + 1]),
+            from_srgb8(raw[i + 2]),
+        ]
     };
     let (a, b, c, d) = (texel(0, 0), texel(1, 0), texel(0, 1), texel(1, 1));
     std::array::from_fn(|i| {
@@ -284,6 +301,9 @@ pub fn shade_coloured(
             shown.push(t);
         }
     }
+    // Where each shown triangle's material is (a search per triangle, not per pixel).
+    let located: Vec<Option<(usize, usize)>> =
+        shown.par_iter().map(|&t| surfaces.ids.locate(t)).collect();
     let bends: Vec<Vec<[[f64; 2]; 3]>> = lights
         .iter()
         .map(|light| {
@@ -314,7 +334,7 @@ pub fn shade_coloured(
                             DVec3::ZERO
                         };
                         let albedo = if on_mesh {
-                            surfaces.albedo(t, bary)
+                            surfaces.albedo_at(located[slot[t] as usize], bary)
                         } else {
                             [ALBEDO; 3]
                         };
@@ -376,6 +396,46 @@ mod tests {
         for far in [1e12, 1e19, 1e300, -1e300, f64::MAX] {
             let c = bilinear(&img, DVec2::new(far, -far));
             assert!(c.iter().all(|v| (v - 1.0).abs() < 1e-9), "{far}: {c:?}");
+        }
+    }
+
+    /// The repeat without a division for coordinates inside the image
+    /// gives what `rem_euclid` on every corner gives, inside, outside and
+    /// on the borders of a non-square image of distinct texels.
+    #[test]
+    fn bilinear_repeats_like_rem_euclid() {
+        let (w, h) = (5u32, 3u32);
+        let img = image::RgbaImage::from_fn(w, h, |x, y| {
+            image::Rgba([
+                (40 * x + 7 * y) as u8,
+                (90 + 50 * y) as u8,
+                (x * y * 13) as u8,
+                255,
+            ])
+        });
+        let reference = |uv: DVec2| {
+            let x = uv.x * w as f64 - 0.5;
+            let y = uv.y * h as f64 - 0.5;
+            let (x0, y0) = (x.floor(), y.floor());
+            let (fx, fy) = (x - x0, y - y0);
+            let texel = |dx: i64, dy: i64| {
+                let px = (x0 as i64 + dx).rem_euclid(w as i64) as u32;
+                let py = (y0 as i64 + dy).rem_euclid(h as i64) as u32;
+                let p = img.get_pixel(px, py).0;
+                [from_srgb8(p[0]), from_srgb8(p[1]), from_srgb8(p[2])]
+            };
+            let (a, b, c, d) = (texel(0, 0), texel(1, 0), texel(0, 1), texel(1, 1));
+            std::array::from_fn::<f64, 3, _>(|i| {
+                let top = a[i] + (b[i] - a[i]) * fx;
+                let bottom = c[i] + (d[i] - c[i]) * fx;
+                top + (bottom - top) * fy
+            })
+        };
+        for i in -40..=40 {
+            for j in -25..=25 {
+                let uv = DVec2::new(i as f64 / 13.0, j as f64 / 7.0);
+                assert_eq!(bilinear(&img, uv), reference(uv), "at {uv}");
+            }
         }
     }
 
