@@ -143,11 +143,40 @@ fn buffer_round_trips() {
             // A typed sub-range.
             ctx.upload_staged(&buf, 40, &[7u64, 8u64]).unwrap();
             assert_eq!(ctx.read_buffer_staged::<u64>(&buf, 40, 2).unwrap(), [7, 8]);
+            // In place: the same values, at an aligned offset and at one
+            // that is not aligned for u64 (then copied).
+            let sum = |v: &[u32]| v.iter().map(|&x| x as u64).sum::<u64>();
+            let mut want = other.clone();
+            want[10..14].copy_from_slice(bytemuck::cast_slice(&[7u64, 8u64]));
+            assert_eq!(
+                ctx.read_buffer_with(&buf, 0, data.len(), sum).unwrap(),
+                sum(&want)
+            );
+            assert_eq!(
+                ctx.read_buffer_with(&buf, 40, 2, |v: &[u64]| v.to_vec())
+                    .unwrap(),
+                [7, 8]
+            );
+            let odd: Vec<u64> =
+                bytemuck::pod_collect_to_vec(bytemuck::cast_slice::<u32, u8>(&want[11..15]));
+            assert_eq!(
+                ctx.read_buffer_with(&buf, 44, 2, |v: &[u64]| v.to_vec())
+                    .unwrap(),
+                odd
+            );
+            assert_eq!(
+                ctx.read_buffer_with(&buf, 0, 0, |v: &[u32]| v.len())
+                    .unwrap(),
+                0
+            );
         }
         // Out of bounds is an error.
         let buf = ctx.create_buffer(BufferDesc::storage("small", 16)).unwrap();
         assert!(ctx.upload(&buf, 8, &[1u32, 2, 3]).is_err());
         assert!(ctx.read_buffer::<u32>(&buf, 0, 5).is_err());
+        assert!(ctx
+            .read_buffer_with(&buf, 4, 4, |v: &[u32]| v.len())
+            .is_err());
         // Copy and fill through a recorder.
         let dst = ctx.create_buffer(BufferDesc::storage("dst", 16)).unwrap();
         ctx.upload(&buf, 0, &[1u32, 2, 3, 4]).unwrap();

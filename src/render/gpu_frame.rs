@@ -13,7 +13,6 @@ use super::{Engine, Frame, FrameOptions};
 use crate::cpu::alpha::AlphaTables;
 use crate::gpu::alpha::mark_alpha_triangles;
 use crate::gpu::gpu_inputs;
-use crate::gpu::view_samples::read_view_samples;
 use crate::light::mask_channel_visibility;
 use crate::oracle::{ViewSample, ViewSamples};
 use crate::scene::file::SceneDescription;
@@ -90,25 +89,32 @@ impl Engine {
             .render(&self.ctx, &desc.camera, &gpu_tris, alpha)?;
         let raster = raster.elapsed();
         let n = (desc.camera.width * desc.camera.height) as usize;
-        let gpu_view = read_view_samples(&self.ctx, view_buf, n)?;
-        // The CPU copy (shading, dump) is exactly what the GPU has.
+        // The CPU copy (shading, dump) is exactly what the GPU has, made
+        // from the read-back memory itself.
+        let samples = self.ctx.read_buffer_with(
+            view_buf,
+            0,
+            n,
+            |gpu: &[crate::gpu::shared::GpuViewSample]| {
+                gpu.par_iter()
+                    .map(|s| {
+                        (s.flags != 0).then(|| ViewSample {
+                            position: eye + Vec3::from_array(s.position).as_dvec3(),
+                            normal: Vec3::from_array(s.normal).as_dvec3(),
+                            triangle: s.triangle,
+                        })
+                    })
+                    .collect::<Vec<_>>()
+            },
+        )?;
         let view = ViewSamples {
             width: desc.camera.width,
             height: desc.camera.height,
             eye,
-            samples: gpu_view
-                .par_iter()
-                .map(|s| {
-                    (s.flags != 0).then(|| ViewSample {
-                        position: eye + Vec3::from_array(s.position).as_dvec3(),
-                        normal: Vec3::from_array(s.normal).as_dvec3(),
-                        triangle: s.triangle,
-                    })
-                })
-                .collect(),
+            samples,
         };
         Ok(FrameView {
-            view_samples: gpu_view.iter().filter(|s| s.flags != 0).count(),
+            view_samples: view.samples.iter().filter(|s| s.is_some()).count(),
             view,
             n,
             triangles: gpu_tris.len(),

@@ -685,6 +685,36 @@ impl GpuContext {
         }
     }
 
+    /// [`GpuContext::read_buffer`] without the copy into a new vector:
+    /// `read` gets the values where they lie (the buffer's mapping when
+    /// host-coherent, else the read-back buffer's after a GPU copy), and
+    /// its result is returned. A mapping not aligned for `T` is copied
+    /// first. Call it after the writing work was submitted and waited for.
+    pub fn read_buffer_with<T: Pod, R>(
+        &self,
+        buffer: &Buffer,
+        offset: u64,
+        count: usize,
+        read: impl FnOnce(&[T]) -> R,
+    ) -> Result<R> {
+        let bytes = (count * std::mem::size_of::<T>()) as u64;
+        buffer.check_range(offset, bytes)?;
+        if bytes == 0 {
+            return Ok(read(&[]));
+        }
+        if buffer.is_host_coherent() {
+            return Ok(read(&mapped_values(buffer, offset, count)?));
+        }
+        let mut staging = self.staging(Staging::Readback, bytes)?;
+        let readback = staging.get(self, bytes)?;
+        let mut rec = self.begin()?;
+        rec.barrier(Barrier::ComputeToTransfer);
+        rec.copy_buffer(buffer.slice(offset, bytes)?, readback, 0)?;
+        // submit_and_wait ends with a barrier that makes the copy host-visible.
+        self.submit_and_wait(rec)?;
+        Ok(read(&mapped_values(readback, 0, count)?))
+    }
+
     /// [`GpuContext::read_buffer`] always through a read-back buffer and a GPU copy.
     pub fn read_buffer_staged<T: Pod>(
         &self,
@@ -706,6 +736,31 @@ impl GpuContext {
         self.submit_and_wait(rec)?;
         readback.read_mapped(0, count)
     }
+}
+
+/// `count` values of `T` at byte `offset` of `buffer`'s mapping (range
+/// checked by the caller; host-coherent, no writer in flight), borrowed
+/// where aligned for `T`, else copied.
+fn mapped_values<T: Pod>(
+    buffer: &Buffer,
+    offset: u64,
+    count: usize,
+) -> Result<std::borrow::Cow<'_, [T]>> {
+    let (ptr, len) = buffer.mapped_range().ok_or_else(|| {
+        Error::Vulkan(format!(
+            "buffer \"{}\" is not host-visible and coherent",
+            buffer.name
+        ))
+    })?;
+    // SAFETY: the mapping is `len` bytes that live as long as `buffer`,
+    // and nothing writes them while the caller reads (its contract).
+    let all = unsafe { std::slice::from_raw_parts(ptr, len) };
+    let start = offset as usize;
+    let bytes = &all[start..start + count * std::mem::size_of::<T>()];
+    Ok(match bytemuck::try_cast_slice(bytes) {
+        Ok(values) => std::borrow::Cow::Borrowed(values),
+        Err(_) => std::borrow::Cow::Owned(bytemuck::pod_collect_to_vec(bytes)),
+    })
 }
 
 /// A buffer that lives across frames: made on first use, grown (a new
