@@ -322,6 +322,10 @@ pub struct FrameCounters {
     pub triangles: usize,
     /// Pixels with a valid view sample (the rest see no geometry).
     pub view_samples: usize,
+    /// Triangles the view samples' raster drew: those whose image may
+    /// contain a pixel centre (`gpu::view_samples`).
+    #[serde(default)]
+    pub view_triangles_drawn: usize,
 }
 
 /// A frame of the CPU oracle.

@@ -21,6 +21,20 @@
 //!    frame with alpha tests draws its triangles in id order by runs
 //!    (`raster_runs`): long runs of opaque triangles with that variant,
 //!    the rest with the alpha-testing one.
+//!
+//!    On a CPU device only the triangles whose image may contain a pixel
+//!    centre are drawn (`drawn_triangles`, through an index buffer of
+//!    their corners, so that `gl_VertexIndex / 3` is still the id): a
+//!    triangle covers no sample, and so writes nothing, when every pixel
+//!    centre lies outside it with its corners moved by the raster's f32
+//!    and fixed-point rounding (`may_cover_pixel_centre`: its widened box
+//!    holds no centre, or a small box's few centres each lie outside one
+//!    of its edges); one near or behind the eye is always drawn. The ids
+//!    are the same. Lavapipe shades vertices and sets up triangles on one
+//!    thread, so its raster costs per triangle (ToyCar: 17 ms at 64², 29
+//!    at 512²), and a model's small triangles far away or outside the view
+//!    are most of its triangles at 256². A GPU draws every triangle (the
+//!    test is host work it does not need).
 //! 2. **Resolve** (`shaders/view_samples_resolve.comp`): per pixel, the
 //!    pixel-centre ray (same formula as [`Camera::ray_direction`], in f32) is
 //!    intersected with that triangle's plane — exact rather than an
@@ -99,6 +113,14 @@ pub struct ViewSamplePass {
     targets: Option<Targets>,
     /// The triangles, also the vertex buffer.
     triangles: GrowBuffer,
+    /// The corners of the triangles drawn (`drawn_triangles`): the index
+    /// buffer.
+    indices: GrowBuffer,
+    /// Whether the raster draws only the triangles that may cover a pixel
+    /// centre (module docs): on a CPU device by default.
+    cull: bool,
+    /// Triangles the last [`ViewSamplePass::render`] drew.
+    drawn: usize,
     /// The raster's triangle ids, copied out of the attachment.
     ids: GrowBuffer,
     /// The view samples.
@@ -124,18 +146,21 @@ const MIN_OPAQUE_RUN: u32 = 1024;
 /// (true), which must shade every fragment it covers before its depth
 /// test (on lavapipe). The ids are drawn in order, so equal depths keep
 /// the smaller id as with one draw.
-fn raster_runs(triangles: &[GpuTriangle]) -> Vec<(bool, Range<u32>)> {
+///
+/// `drawn` lists the ids drawn, in increasing order; the runs are ranges
+/// of positions in it.
+fn raster_runs(triangles: &[GpuTriangle], drawn: &[u32]) -> Vec<(bool, Range<u32>)> {
     let mut runs: Vec<(bool, Range<u32>)> = Vec::new();
     let mut push = |alpha: bool, ids: Range<u32>| match runs.last_mut() {
         Some((a, last)) if *a == alpha && last.end == ids.start => last.end = ids.end,
         _ => runs.push((alpha, ids)),
     };
+    let is_alpha = |k: usize| triangles[drawn[k] as usize].flags & TRIANGLE_ALPHA != 0;
     let mut start = 0usize;
-    while start < triangles.len() {
-        let alpha = triangles[start].flags & TRIANGLE_ALPHA != 0;
-        let len = triangles[start..]
-            .iter()
-            .take_while(|t| (t.flags & TRIANGLE_ALPHA != 0) == alpha)
+    while start < drawn.len() {
+        let alpha = is_alpha(start);
+        let len = (start..drawn.len())
+            .take_while(|&k| is_alpha(k) == alpha)
             .count();
         let end = start + len;
         let as_alpha = alpha || (len as u32) < MIN_OPAQUE_RUN;
@@ -148,6 +173,128 @@ fn raster_runs(triangles: &[GpuTriangle]) -> Vec<(bool, Range<u32>)> {
     runs
 }
 const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
+
+/// Relative rounding allowed for the raster's f32 transform of a vertex
+/// (its dot products and divide, a few ulps: this is over a hundred).
+const CULL_ROUNDING: f64 = 1e-5;
+/// Pixels allowed per axis for the viewport transform's rounding and the
+/// rasteriser's fixed-point vertex snapping: twice the most that Vulkan
+/// allows (4 sub-pixel bits, 1/32 pixel; lavapipe has 8). With none, the
+/// cull changes view samples (`tests/view_samples.rs`); 0.002 sufficed
+/// there.
+const CULL_SNAP: f64 = 0.0625;
+
+/// Pixel centres a triangle's box may hold for [`may_cover_pixel_centre`]
+/// to test each against its edges; a larger one is drawn.
+const CULL_CENTRES: f64 = 16.0;
+
+/// Whether triangle `t`'s image under `push` (the raster's transform) may
+/// contain the centre of one of the `size` pixels: false only when each
+/// corner moved by up to the raster's rounding (`margin` pixels per axis)
+/// leaves every centre outside it: none in the widened bounding box, or,
+/// for a box of at most [`CULL_CENTRES`] centres, each centre farther than
+/// √2 `margin` outside one of its edges. Always true for a triangle with a
+/// corner near or behind the eye (the raster clips it at the near plane),
+/// one without area, or a coordinate that is not finite.
+fn may_cover_pixel_centre(push: &RasterPush, size: [u32; 2], t: &GpuTriangle) -> bool {
+    let v3 = |a: [f32; 4]| DVec3::new(a[0] as f64, a[1] as f64, a[2] as f64);
+    let axes = [v3(push.right), v3(push.down)];
+    let forward = v3(push.forward);
+    let (axes_abs, forward_abs) = (axes.map(|a| a.abs()), forward.abs());
+    let half = size.map(|s| 0.5 * s as f64);
+    let near = push.forward[3] as f64;
+    let mut corners = [[0.0f64; 2]; 3];
+    let mut margin = 0.0f64;
+    for (c, v) in corners.iter_mut().zip([t.v0, t.v1, t.v2]) {
+        let p = DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
+        let z = p.dot(forward);
+        if !(z > 2.0 * near && z.is_finite()) {
+            return true;
+        }
+        // What the f32 dot products can be off by, before the divide.
+        let (pa, inv_z) = (p.abs(), 1.0 / z);
+        let z_err = pa.dot(forward_abs);
+        for k in 0..2 {
+            let ndc = p.dot(axes[k]) * inv_z;
+            let err = CULL_ROUNDING * (pa.dot(axes_abs[k]) + ndc.abs() * z_err) * inv_z;
+            c[k] = (ndc + 1.0) * half[k];
+            margin = margin.max(err * half[k] + CULL_SNAP);
+        }
+    }
+    if !(corners.iter().flatten().all(|x| x.is_finite()) && margin.is_finite()) {
+        return true;
+    }
+    // The pixel centres i + 0.5 (0 <= i < size) inside the widened box.
+    let range = |k: usize| {
+        let lo = corners.iter().map(|c| c[k]).fold(f64::INFINITY, f64::min) - margin;
+        let hi = corners
+            .iter()
+            .map(|c| c[k])
+            .fold(f64::NEG_INFINITY, f64::max)
+            + margin;
+        let first = (lo - 0.5).ceil().max(0.0);
+        let last = (hi - 0.5).floor().min(size[k] as f64 - 1.0);
+        (first, last)
+    };
+    let ((x0, x1), (y0, y1)) = (range(0), range(1));
+    if !(x0 <= x1 && y0 <= y1) {
+        return false;
+    }
+    if (x1 - x0 + 1.0) * (y1 - y0 + 1.0) > CULL_CENTRES {
+        return true;
+    }
+    let [a, b, c] = corners;
+    let area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+    if area.is_nan() || area.abs() <= 1e-9 {
+        return true;
+    }
+    // A corner moved by up to `margin` on each axis moves by up to √2
+    // `margin`, and so does every point of the triangle. Per edge (e0, e1):
+    // a centre p lies farther than that outside it when (e1 - e0) x
+    // (p - e0), signed by the winding, is below -√2 margin |e1 - e0|.
+    let edges = [(a, b), (b, c), (c, a)].map(|(e0, e1)| {
+        let (dx, dy) = (e1[0] - e0[0], e1[1] - e0[1]);
+        let limit = -std::f64::consts::SQRT_2 * margin * (dx * dx + dy * dy).sqrt();
+        (e0, dx * area.signum(), dy * area.signum(), limit)
+    });
+    let mut y = y0;
+    while y <= y1 {
+        let mut x = x0;
+        while x <= x1 {
+            let (px, py) = (x + 0.5, y + 0.5);
+            let outside = edges
+                .iter()
+                .any(|&(e0, dx, dy, limit)| dx * (py - e0[1]) - dy * (px - e0[0]) < limit);
+            if !outside {
+                return true;
+            }
+            x += 1.0;
+        }
+        y += 1.0;
+    }
+    false
+}
+
+/// The ids of the triangles the raster draws, in increasing order: with
+/// `cull`, those that [`may_cover_pixel_centre`]; without, all.
+fn drawn_triangles(
+    push: &RasterPush,
+    size: [u32; 2],
+    triangles: &[GpuTriangle],
+    cull: bool,
+) -> Vec<u32> {
+    use rayon::prelude::*;
+    if !cull {
+        return (0..triangles.len() as u32).collect();
+    }
+    // Rayon's collect keeps the order.
+    triangles
+        .par_iter()
+        .enumerate()
+        .filter(|(_, t)| may_cover_pixel_centre(push, size, t))
+        .map(|(i, _)| i as u32)
+        .collect()
+}
 
 impl ViewSamplePass {
     /// Builds both pipelines; fails when the device's queue cannot do graphics.
@@ -188,12 +335,19 @@ impl ViewSamplePass {
         })?;
         let mut triangles = BufferDesc::storage("view_triangles", 0);
         triangles.usage |= vk::BufferUsageFlags::VERTEX_BUFFER;
+        let mut indices = BufferDesc::storage("view_triangle_corners", 0);
+        indices.usage |= vk::BufferUsageFlags::INDEX_BUFFER;
         Ok(ViewSamplePass {
             raster,
             raster_opaque,
             resolve,
             targets: None,
             triangles: GrowBuffer::new(triangles),
+            indices: GrowBuffer::new(indices),
+            // The raster's per-triangle work is the host's on a CPU device
+            // (lavapipe); a GPU's raster has no use for a host-side cull.
+            cull: ctx.info().is_cpu(),
+            drawn: 0,
             ids: GrowBuffer::storage("view_sample_ids"),
             samples: GrowBuffer::storage("view_samples"),
             none: GrowBuffer::storage("view_alpha_none"),
@@ -246,9 +400,20 @@ impl ViewSamplePass {
         if nt > 0 {
             ctx.upload(tri_buf, 0, triangles)?;
         }
+        let drawn = drawn_triangles(&raster_push, [width, height], triangles, self.cull);
+        self.drawn = drawn.len();
+        let corners: Vec<u32> = drawn
+            .iter()
+            .flat_map(|&t| [3 * t, 3 * t + 1, 3 * t + 2])
+            .collect();
+        let index_buf = self.indices.get(ctx, 4 * corners.len().max(1) as u64)?;
+        if !corners.is_empty() {
+            ctx.upload(index_buf, 0, &corners)?;
+        }
         self.ids.get(ctx, 4 * pixels)?;
         self.samples.get(ctx, out_bytes)?;
         let (tri_buf, ids_buf) = (self.triangles.buffer(), self.ids.buffer());
+        let index_buf = self.indices.buffer();
         let targets = self.targets.as_ref().expect("made above");
         self.profiler.clear();
         let mut rec = ctx.begin()?;
@@ -276,8 +441,8 @@ impl ViewSamplePass {
             alphas,
         ];
         let runs = match any_alpha {
-            true => raster_runs(&triangles[..nt as usize]),
-            false => vec![(false, 0..nt)],
+            true => raster_runs(&triangles[..nt as usize], &drawn),
+            false => vec![(false, 0..drawn.len() as u32)],
         };
         let draws: Vec<Draw> = runs
             .iter()
@@ -295,7 +460,7 @@ impl ViewSamplePass {
             &draws,
             &targets.framebuffer,
             &clear,
-            Some(tri_buf),
+            (Some(tri_buf), Some(index_buf)),
             (bytemuck::bytes_of(&raster_push), &raster_bindings),
         )?;
         rec.copy_attachment_to_buffer(&targets.ids, 4, ids_buf)?;
@@ -404,6 +569,19 @@ impl ViewSamplePass {
     /// Before the first render.
     pub fn triangles(&self) -> &Buffer {
         self.triangles.buffer()
+    }
+
+    /// Whether [`ViewSamplePass::render`] draws only the triangles whose
+    /// image may contain a pixel centre (the default on a CPU device) or
+    /// all of them (the default on a GPU); the view samples are the same
+    /// (module docs).
+    pub fn set_cull(&mut self, on: bool) {
+        self.cull = on;
+    }
+
+    /// How many triangles the last [`ViewSamplePass::render`] drew.
+    pub fn drawn_triangles(&self) -> usize {
+        self.drawn
     }
 
     /// The view samples of the last [`ViewSamplePass::render`].
@@ -518,7 +696,8 @@ mod tests {
         ];
         for (case, want) in cases.iter().zip(expected) {
             let t = triangles(case);
-            let runs = raster_runs(&t);
+            let all: Vec<u32> = (0..t.len() as u32).collect();
+            let runs = raster_runs(&t, &all);
             let mut next = 0;
             for (alpha, ids) in &runs {
                 assert_eq!(ids.start, next, "runs in id order, none left out: {case:?}");

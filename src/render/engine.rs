@@ -252,6 +252,15 @@ impl Engine {
         self.shadows.set_clusters(on);
     }
 
+    /// Whether the view samples' raster draws only the triangles whose
+    /// image may contain a pixel centre (by default on a CPU device, where
+    /// the raster's per-triangle work runs on the host's threads; the view
+    /// samples are the same either way): for tests and for measuring what
+    /// the cull saves.
+    pub fn set_view_cull(&mut self, on: bool) {
+        self.view.set_cull(on);
+    }
+
     /// Maps look-up tables read from the cache into device memory where the
     /// device allows it (a CPU device with `VK_EXT_external_memory_host`:
     /// no copy); on by default. Off reads them into fresh memory, as on a

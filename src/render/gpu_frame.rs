@@ -31,6 +31,8 @@ pub(super) struct FrameView {
     pub(super) view_samples: usize,
     /// Triangles in the buffer.
     pub(super) triangles: usize,
+    /// Triangles the view samples' raster drew.
+    pub(super) drawn: usize,
     /// GPU time of the view-sample pass.
     pub(super) view_ms: f64,
     /// Host time of the frame's inputs (`FrameMs::inputs_cpu`).
@@ -118,6 +120,7 @@ impl Engine {
             view,
             n,
             triangles: gpu_tris.len(),
+            drawn: self.view.drawn_triangles(),
             view_ms,
             inputs_ms: (t.elapsed() - raster).as_secs_f64() * 1e3,
         })
@@ -166,6 +169,7 @@ impl Engine {
             counters: FrameCounters {
                 triangles: fv.triangles,
                 view_samples: fv.view_samples,
+                view_triangles_drawn: fv.drawn,
             },
             allocations: self.ctx.allocations() - before,
             reused,

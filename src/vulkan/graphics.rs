@@ -590,15 +590,17 @@ impl Drop for Framebuffer {
 }
 
 /// One draw of [`CommandRecorder::draw_pass_ranges`]: `pipeline` draws
-/// vertices `first_vertex .. first_vertex + vertex_count`.
+/// vertices `first_vertex .. first_vertex + vertex_count`, or with an index
+/// buffer the vertices its entries `first_vertex ..` name.
 #[derive(Clone, Copy)]
 pub struct Draw<'a> {
     /// The pipeline; every draw of a pass needs a render pass and a layout
     /// compatible with the first one's.
     pub pipeline: &'a GraphicsPipeline,
-    /// The first vertex (`gl_VertexIndex` counts from it).
+    /// The first vertex (`gl_VertexIndex` counts from it), or the first
+    /// index.
     pub first_vertex: u32,
-    /// How many vertices.
+    /// How many vertices (indices).
     pub vertex_count: u32,
 }
 
@@ -626,18 +628,19 @@ impl CommandRecorder {
             first_vertex: 0,
             vertex_count,
         };
-        self.draw_pass_ranges(&[draw], framebuffer, clear, vertices, constants)
+        self.draw_pass_ranges(&[draw], framebuffer, clear, (vertices, None), constants)
     }
 
     /// [`Self::draw_pass`] with several draws in order, each with its own
     /// pipeline (the same `push` constants and `bindings` for all; the
-    /// render pass is the first pipeline's).
+    /// render pass is the first pipeline's). With `indices` (u32, written
+    /// before like the vertices), the draws are indexed.
     pub fn draw_pass_ranges(
         &mut self,
         draws: &[Draw<'_>],
         framebuffer: &Framebuffer,
         clear: &[vk::ClearValue],
-        vertices: Option<&Buffer>,
+        (vertices, indices): (Option<&Buffer>, Option<&Buffer>),
         (push, bindings): (&[u8], &[Binding<'_>]),
     ) -> Result<()> {
         let Some(first) = draws.first() else {
@@ -672,6 +675,26 @@ impl CommandRecorder {
                 )));
             }
         }
+        if let Some(ib) = indices {
+            if !ib.usage().contains(vk::BufferUsageFlags::INDEX_BUFFER) {
+                return Err(Error::Vulkan(format!(
+                    "buffer \"{}\" was not created with INDEX_BUFFER usage",
+                    ib.name()
+                )));
+            }
+            if let Some(d) = draws
+                .iter()
+                .find(|d| (d.first_vertex as u64 + d.vertex_count as u64) * 4 > ib.size())
+            {
+                return Err(Error::InvalidInput(format!(
+                    "a draw of indices {}..{} past the end of \"{}\" ({} bytes)",
+                    d.first_vertex,
+                    d.first_vertex as u64 + d.vertex_count as u64,
+                    ib.name(),
+                    ib.size()
+                )));
+            }
+        }
         let [width, height] = framebuffer.extent();
         let area = vk::Rect2D {
             offset: vk::Offset2D { x: 0, y: 0 },
@@ -698,6 +721,9 @@ impl CommandRecorder {
             d.cmd_set_scissor(cmd, 0, &[area]);
             if let Some(v) = vertices {
                 d.cmd_bind_vertex_buffers(cmd, 0, &[v.raw()], &[0]);
+            }
+            if let Some(ib) = indices {
+                d.cmd_bind_index_buffer(cmd, ib.raw(), 0, vk::IndexType::UINT32);
             }
             let mut bound: Option<vk::Pipeline> = None;
             for draw in draws {
@@ -728,7 +754,12 @@ impl CommandRecorder {
                     bound = Some(p.raw());
                 }
                 if draw.vertex_count > 0 {
-                    d.cmd_draw(cmd, draw.vertex_count, 1, draw.first_vertex, 0);
+                    match indices {
+                        Some(_) => {
+                            d.cmd_draw_indexed(cmd, draw.vertex_count, 1, draw.first_vertex, 0, 0)
+                        }
+                        None => d.cmd_draw(cmd, draw.vertex_count, 1, draw.first_vertex, 0),
+                    }
                 }
             }
             d.cmd_end_render_pass(cmd);
@@ -776,7 +807,7 @@ pub fn vertex_input_barrier(rec: &mut CommandRecorder) {
     use vk::PipelineStageFlags as S;
     let memory = [vk::MemoryBarrier::default()
         .src_access_mask(A::TRANSFER_WRITE | A::SHADER_WRITE)
-        .dst_access_mask(A::VERTEX_ATTRIBUTE_READ | A::SHADER_READ)];
+        .dst_access_mask(A::VERTEX_ATTRIBUTE_READ | A::INDEX_READ | A::SHADER_READ)];
     unsafe {
         rec.device().raw().cmd_pipeline_barrier(
             rec.raw(),
