@@ -705,14 +705,9 @@ impl GpuContext {
         if buffer.is_host_coherent() {
             return Ok(read(&mapped_values(buffer, offset, count)?));
         }
-        let mut staging = self.staging(Staging::Readback, bytes)?;
-        let readback = staging.get(self, bytes)?;
-        let mut rec = self.begin()?;
-        rec.barrier(Barrier::ComputeToTransfer);
-        rec.copy_buffer(buffer.slice(offset, bytes)?, readback, 0)?;
-        // submit_and_wait ends with a barrier that makes the copy host-visible.
-        self.submit_and_wait(rec)?;
-        Ok(read(&mapped_values(readback, 0, count)?))
+        self.through_readback(buffer, offset, bytes, |readback| {
+            Ok(read(&mapped_values(readback, 0, count)?))
+        })
     }
 
     /// [`GpuContext::read_buffer`] always through a read-back buffer and a GPU copy.
@@ -727,6 +722,21 @@ impl GpuContext {
         if bytes == 0 {
             return Ok(Vec::new());
         }
+        self.through_readback(buffer, offset, bytes, |readback| {
+            readback.read_mapped(0, count)
+        })
+    }
+
+    /// Copies `bytes` bytes at `offset` of `buffer` into the read-back
+    /// staging buffer on the GPU, waits, and hands `read` that buffer
+    /// (the bytes at its start).
+    fn through_readback<R>(
+        &self,
+        buffer: &Buffer,
+        offset: u64,
+        bytes: u64,
+        read: impl FnOnce(&Buffer) -> Result<R>,
+    ) -> Result<R> {
         let mut staging = self.staging(Staging::Readback, bytes)?;
         let readback = staging.get(self, bytes)?;
         let mut rec = self.begin()?;
@@ -734,7 +744,7 @@ impl GpuContext {
         rec.copy_buffer(buffer.slice(offset, bytes)?, readback, 0)?;
         // submit_and_wait ends with a barrier that makes the copy host-visible.
         self.submit_and_wait(rec)?;
-        readback.read_mapped(0, count)
+        read(readback)
     }
 }
 
