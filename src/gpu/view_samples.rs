@@ -676,6 +676,87 @@ mod tests {
             .collect()
     }
 
+    /// The cull's rule on hand-made cases: a 10x10 image seen along -z
+    /// with a 90° field of view (pixel (px, py) at depth 1 is x = px / 5 -
+    /// 1, y = 1 - py / 5).
+    #[test]
+    fn pixel_centre_rule_cases() {
+        let push = RasterPush {
+            right: [1.0, 0.0, 0.0, 0.0],
+            down: [0.0, -1.0, 0.0, 0.0],
+            forward: [0.0, 0.0, -1.0, 1e-6],
+            ray: ViewRay::default(),
+        };
+        let at = |px: f32, py: f32, z: f32| {
+            glam::Vec3::new((px / 5.0 - 1.0) * z, (1.0 - py / 5.0) * z, -z)
+        };
+        let tri = |v: [glam::Vec3; 3]| GpuTriangle::new(v, 0, 0);
+        let size = [10, 10];
+        let covers = |t: GpuTriangle| may_cover_pixel_centre(&push, size, &t);
+        // Around the centre (3.5, 4.5), and a small one between centres.
+        assert!(covers(tri([
+            at(3.0, 4.0, 2.0),
+            at(4.2, 4.0, 2.0),
+            at(3.0, 5.2, 2.0)
+        ])));
+        assert!(!covers(tri([
+            at(3.6, 4.6, 2.0),
+            at(4.2, 4.6, 2.0),
+            at(3.6, 5.2, 2.0)
+        ])));
+        // Legs from (2.6, 3.6) of length l: the box holds one centre,
+        // (3.5, 4.5), which lies (1.8 - l) / √2 outside the hypotenuse:
+        // 0.2 pixel, left out; 0.05 pixel (within the margin), drawn.
+        let legs = |l: f32| {
+            tri([
+                at(2.6, 3.6, 2.0),
+                at(2.6 + l, 3.6, 2.0),
+                at(2.6, 3.6 + l, 2.0),
+            ])
+        };
+        assert!(!covers(legs(1.8 - 0.2 * std::f32::consts::SQRT_2)));
+        assert!(covers(legs(1.8 - 0.05 * std::f32::consts::SQRT_2)));
+        assert!(covers(legs(1.9)));
+        // Off the image, beyond its last centre by 0.3 pixel.
+        assert!(!covers(tri([
+            at(9.8, 2.0, 3.0),
+            at(12.0, 2.0, 3.0),
+            at(12.0, 6.0, 3.0)
+        ])));
+        assert!(!covers(tri([
+            at(-3.0, -3.0, 3.0),
+            at(-1.0, -3.0, 3.0),
+            at(-1.0, 20.0, 3.0)
+        ])));
+        // A corner at or behind the eye, or not finite: always drawn.
+        assert!(covers(tri([
+            glam::Vec3::new(50.0, 50.0, 1.0),
+            at(20.0, 20.0, 3.0),
+            at(21.0, 20.0, 3.0)
+        ])));
+        assert!(covers(tri([
+            glam::Vec3::ZERO,
+            at(20.0, 20.0, 3.0),
+            at(21.0, 20.0, 3.0)
+        ])));
+        assert!(covers(tri([
+            glam::Vec3::splat(f32::NAN),
+            at(20.0, 20.0, 3.0),
+            at(21.0, 20.0, 3.0)
+        ])));
+        // No area (one point three times), its box holding a centre:
+        // drawn (no winding to test against).
+        assert!(covers(tri([at(3.45, 4.45, 2.0); 3])));
+        // The cull off draws every id; on, the same order.
+        let tris = [
+            tri([at(3.0, 4.0, 2.0), at(4.2, 4.0, 2.0), at(3.0, 5.2, 2.0)]),
+            tri([at(3.6, 4.6, 2.0), at(4.2, 4.6, 2.0), at(3.6, 5.2, 2.0)]),
+            tri([at(0.0, 0.0, 2.0), at(10.0, 0.0, 2.0), at(0.0, 10.0, 2.0)]),
+        ];
+        assert_eq!(drawn_triangles(&push, size, &tris, false), [0, 1, 2]);
+        assert_eq!(drawn_triangles(&push, size, &tris, true), [0, 2]);
+    }
+
     #[test]
     fn raster_runs_cover_every_id_in_order() {
         let m = MIN_OPAQUE_RUN as usize;
