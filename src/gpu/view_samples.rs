@@ -402,18 +402,24 @@ impl ViewSamplePass {
         }
         let drawn = drawn_triangles(&raster_push, [width, height], triangles, self.cull);
         self.drawn = drawn.len();
-        let corners: Vec<u32> = drawn
-            .iter()
-            .flat_map(|&t| [3 * t, 3 * t + 1, 3 * t + 2])
-            .collect();
-        let index_buf = self.indices.get(ctx, 4 * corners.len().max(1) as u64)?;
-        if !corners.is_empty() {
-            ctx.upload(index_buf, 0, &corners)?;
+        // An index buffer only when some triangle is left out: with every
+        // one drawn (a GPU, or nothing culled), a run's positions in
+        // `drawn` are its ids, and the draws are the plain ones.
+        let indexed = drawn.len() < nt as usize;
+        if indexed {
+            let corners: Vec<u32> = drawn
+                .iter()
+                .flat_map(|&t| [3 * t, 3 * t + 1, 3 * t + 2])
+                .collect();
+            let index_buf = self.indices.get(ctx, 4 * corners.len().max(1) as u64)?;
+            if !corners.is_empty() {
+                ctx.upload(index_buf, 0, &corners)?;
+            }
         }
         self.ids.get(ctx, 4 * pixels)?;
         self.samples.get(ctx, out_bytes)?;
         let (tri_buf, ids_buf) = (self.triangles.buffer(), self.ids.buffer());
-        let index_buf = self.indices.buffer();
+        let index_buf = indexed.then(|| self.indices.buffer());
         let targets = self.targets.as_ref().expect("made above");
         self.profiler.clear();
         let mut rec = ctx.begin()?;
@@ -460,7 +466,7 @@ impl ViewSamplePass {
             &draws,
             &targets.framebuffer,
             &clear,
-            (Some(tri_buf), Some(index_buf)),
+            (Some(tri_buf), index_buf),
             (bytemuck::bytes_of(&raster_push), &raster_bindings),
         )?;
         rec.copy_attachment_to_buffer(&targets.ids, 4, ids_buf)?;
