@@ -87,19 +87,16 @@ uint lut_index(vec3 n, float d, uint res) {
     return (uint(c.z) * res + uint(c.y)) * res + uint(c.x);
 }
 
-// The centre normal of normal cell `cell` (j * res + i). Twin:
-// plane_lut::cell_normal.
-vec3 lut_cell_normal(uint cell, uint res) {
-    vec3 n;
-    float d;
-    lut_texel_plane(uvec3(cell % res, cell / res, 0u), res, n, d);
-    return n;
-}
-
-// The normal's cell of lut_index (its index with k = 0).
-uint lut_normal_cell(vec3 n, uint res) {
+// The normal cell of lut_index (its index with k = 0) and that cell's
+// centre normal (the plane of its texel (i, j, 0)). Twin:
+// plane_lut::cell_normal. The centre comes from the cell's float
+// coordinates, the same values as float(i), float(j), not from the index
+// by integer division: lavapipe has no vector integer division and runs
+// one per lane (look-up mode calls this four times per pair).
+uint lut_normal_cell(vec3 n, uint res, out vec3 centre) {
     float r = float(res);
     vec2 c = clamp(floor((oct_encode(n) + 1.0) * (0.5 * r)), vec2(0.0), vec2(r - 1.0));
+    centre = oct_decode(-1.0 + (c + 0.5) * (2.0 / r));
     return uint(c.y) * res + uint(c.x);
 }
 

@@ -174,8 +174,9 @@ float sphere_allowance(vec3 v, float inv_r) {
 // and SURE_SLACK, and the flags where no plane does. Twin:
 // plane_lut::sure_texels.
 void sure_texels(vec3 u, float d, uint res, out uint te, out uint ts, out uint flags) {
-    uint cell = lut_normal_cell(u, res);
-    float delta = length(u - lut_cell_normal(cell, res)) * (1.0 + 1e-5) + pc.soft_light.w + SURE_SLACK;
+    vec3 centre;
+    uint cell = lut_normal_cell(u, res, centre);
+    float delta = length(u - centre) * (1.0 + 1e-5) + pc.soft_light.w + SURE_SLACK;
     float lo = d - delta, hi = d + delta;
     float half_res = 0.5 * float(res);
     float ke = floor((lo + 1.0) * half_res);
