@@ -70,6 +70,11 @@ void main() {
     begin += (local_unit % pair_chunks) * OCC_PAIR_CHUNK;
     end = min(end, begin + OCC_PAIR_CHUNK);
     uint tests = 0u, visited = 0u;
+    // The lane's shadowed list entries (bit s - list_begin; OCC_SAMPLE_CHUNK
+    // is 32), written once at the end: on lavapipe a storage write costs a
+    // loop over the lanes whether or not they write, so one inside the
+    // sample loop cost every (pair, sample) test.
+    uint hits = 0u;
     // Every lane of the unit runs the window loop (its first loop's
     // shuffles need the whole subgroup); lanes without samples find no
     // pair touching.
@@ -154,12 +159,15 @@ void main() {
                         vec2 bc = segment_barycentrics(qs.xyz, d, a, b, uintBitsToFloat(c.xyz));
                         hit = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, c.w, bc);
                     }
-                    if (hit) {
-                        shadowed[s] = 1u;
-                    }
+                    hits |= hit ? 1u << (s - list_begin) : 0u;
                 }
             }
         }
+    }
+    while (hits != 0u) {
+        uint bit = uint(findLSB(hits));
+        hits &= hits - 1u;
+        shadowed[list_begin + bit] = 1u;
     }
     uint sum_tests = subgroupAdd(tests);
     uint sum_visited = subgroupAdd(visited);

@@ -16,8 +16,9 @@
 // every loop of an invocation silently once all its loops together have run
 // 65535 iterations (LP_MAX_TGSI_LOOP_ITERATIONS), so each invocation's work
 // is bounded: occlusion.comp runs at most OCC_PAIR_CHUNK * (OCC_SAMPLE_CHUNK
-// + 2) + OCC_PAIR_CHUNK / PAIR_WINDOW iterations (a loop over each window's
-// pairs, then the list for each pair that touches the texel).
+// + 2) + OCC_PAIR_CHUNK / PAIR_WINDOW + OCC_SAMPLE_CHUNK iterations (a
+// loop over each window's pairs, then the list for each pair that touches
+// the texel; last, the shadowed entries' writes).
 // Specialization constants: the soft exact mode loops over 128 light
 // samples per test, so its chunks are smaller.
 layout(constant_id = 2) const uint OCC_PAIR_CHUNK = 64u;
@@ -31,7 +32,8 @@ layout(constant_id = 2) const uint OCC_PAIR_CHUNK = 64u;
 // loop's trip count saves time. Most (sample, pair) combinations fail the
 // cheap rules.
 #define PAIR_WINDOW 32u
-layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 256u;
+// 32: occlusion.comp keeps a chunk's shadowed entries in one uint.
+layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 32u;
 #define TEXEL_MARGIN 0.01
 // Rounding of projected coordinates that the texel margins absorb, in ulps
 // of their magnitude (casters_common.glsl: face_scale, texel_margin).
