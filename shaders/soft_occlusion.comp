@@ -310,6 +310,9 @@ shared uint kept_pairs[MAX_KEPT];
 shared uint kept_count;
 // Per subgroup: its samples' box (xyz) and texel rectangle (w: x | y << 16).
 shared vec4 chunk_lo[64], chunk_hi[64];
+// This invocation's subgroup: the texel rectangle of its samples
+// (keep_pairs), for the first loop's per-subgroup rectangle test.
+uvec2 subgroup_tmin, subgroup_tmax;
 
 // This workgroup's pairs that its samples may need, into kept_pairs; the
 // count of those kept. All invocations call it (barriers).
@@ -322,6 +325,8 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra) {
     vec3 sg_hi = subgroupMax(un.has_sample ? x : -inf);
     uvec2 sg_tmin = subgroupMin(un.has_sample ? un.texel : uvec2(0xffffu));
     uvec2 sg_tmax = subgroupMax(un.has_sample ? un.texel : uvec2(0u));
+    subgroup_tmin = sg_tmin;
+    subgroup_tmax = sg_tmax;
     if (subgroupElect()) {
         chunk_lo[gl_SubgroupID] = vec4(sg_lo, uintBitsToFloat(sg_tmin.x | (sg_tmin.y << 16)));
         chunk_hi[gl_SubgroupID] = vec4(sg_hi, uintBitsToFloat(sg_tmax.x | (sg_tmax.y << 16)));
@@ -581,9 +586,19 @@ void main() {
             for (uint j0 = 0u; j0 < window; j0 += group) {
                 uint k = min(j0 + gl_SubgroupInvocationID % group, window - 1u);
                 PairTexels fetched = fetch_pair(kept_pairs[w0 + k]);
-                for (uint j = j0; j < min(j0 + group, window); j++) {
+                // The pairs whose rectangle meets some texel of the
+                // subgroup's samples: the others every lane culls.
+                uvec2 rmin = uvec2(fetched.ids.z & 0xffffu, fetched.ids.z >> 16);
+                uvec2 rmax = uvec2(fetched.ids.w & 0xffffu, fetched.ids.w >> 16);
+                bool meets = !(any(lessThan(subgroup_tmax, rmin)) || any(greaterThan(subgroup_tmin, rmax)));
+                uint in_group = min(group, window - j0);
+                uint meeting = subgroupBallot(meets).x & (in_group >= 32u ? 0xffffffffu : (1u << in_group) - 1u);
+                while (meeting != 0u) {
+                    uint jj = uint(findLSB(meeting));
+                    meeting &= meeting - 1u;
+                    uint j = j0 + jj;
                     PairPlanes p;
-                    uint rule = pair_planes_of(shuffle_pair(fetched, j - j0), texel, qb.w, x, o,
+                    uint rule = pair_planes_of(shuffle_pair(fetched, jj), texel, qb.w, x, o,
                                                inv_r, ox, lo_x, turn_back, p);
                     if (!full) {
                         // Tests in the low half, plane rejections in the high
