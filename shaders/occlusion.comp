@@ -90,6 +90,9 @@ void main() {
         // only. A subgroup whose lanes have no samples stops at once.
         bool has_list = list_begin != list_end;
         vec2 lo = vec2(texel), hi = lo + 1.0;
+        // The rectangle of the subgroup's texels with lists.
+        uvec2 sg_tmin = subgroupMin(has_list ? texel : uvec2(0xffffu));
+        uvec2 sg_tmax = subgroupMax(has_list ? texel : uvec2(0u));
         for (uint w0 = begin; w0 < end; w0 += PAIR_WINDOW) {
             if (subgroupBallotBitCount(subgroupBallot(has_list)) == 0u) {
                 break;
@@ -106,8 +109,17 @@ void main() {
                 uvec4 e0_k = texelFetch(pairs_tb, int(4u * pk + 1u));
                 uvec4 e1_k = texelFetch(pairs_tb, int(4u * pk + 2u));
                 uvec4 e2_k = texelFetch(pairs_tb, int(4u * pk + 3u));
-                for (uint j = j0; j < min(j0 + group, window); j++) {
-                    uint lane = j - j0;
+                // The pairs whose rectangle meets the subgroup's texels
+                // with lists (one ballot); the others no lane touches.
+                uvec2 rmin_k = uvec2(ids_k.z & 0xffffu, ids_k.z >> 16);
+                uvec2 rmax_k = uvec2(ids_k.w & 0xffffu, ids_k.w >> 16);
+                bool meets = !(any(lessThan(sg_tmax, rmin_k)) || any(greaterThan(sg_tmin, rmax_k)));
+                uint in_group = min(group, window - j0);
+                uint meeting = subgroupBallot(meets).x & (in_group >= 32u ? 0xffffffffu : (1u << in_group) - 1u);
+                while (meeting != 0u) {
+                    uint lane = uint(findLSB(meeting));
+                    meeting &= meeting - 1u;
+                    uint j = j0 + lane;
                     CasterFace cf;
                     cf.ids = subgroupShuffle(ids_k, lane);
                     cf.e0 = uintBitsToFloat(subgroupShuffle(e0_k, lane));
