@@ -16,7 +16,7 @@ layout(constant_id = 4) const uint CLUSTERS = 0u;
 layout(set = 0, binding = 0) readonly buffer Pairs { CasterFace pairs[]; };
 layout(set = 0, binding = 1) buffer Counters { uint counters[]; };
 layout(set = 0, binding = 2) buffer TileCounts { uint tile_counts[]; }; // counts, or cursors when scattering
-layout(set = 0, binding = 3) readonly buffer TileOffsets { uint tile_offsets[]; };
+layout(set = 0, binding = 3) uniform usamplerBuffer tile_offsets_tb; // scattering: each tile's first slot
 layout(set = 0, binding = 4) writeonly buffer TilePairs { uint tile_pairs[]; };
 // Texel buffers (on lavapipe ~10x faster gathers than storage buffers).
 // The texel count pass's per-tile buffer: longest lists, then the tiles'
@@ -74,7 +74,7 @@ void main() {
                 if (SCATTER == 0u) {
                     atomicAdd(tile_counts[tile], 1u);
                 } else {
-                    uint slot = tile_offsets[tile] + atomicAdd(tile_counts[tile], 1u);
+                    uint slot = texelFetch(tile_offsets_tb, int(tile)).x + atomicAdd(tile_counts[tile], 1u);
                     // A caller's recording binds a list of fixed capacity: past
                     // it, record_args.comp reports the overflow and runs no unit.
                     if (slot < uint(tile_pairs.length())) {

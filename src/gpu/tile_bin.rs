@@ -95,7 +95,7 @@ impl TileBinPass {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let sb = DescriptorKind::StorageBuffer;
         let tb = DescriptorKind::UniformTexelBuffer;
-        let bin_bindings = [sb, sb, sb, sb, sb, tb, tb, tb];
+        let bin_bindings = [sb, sb, sb, tb, sb, tb, tb, tb];
         let make = |name, spirv, bindings: &[DescriptorKind], spec: &[(u32, u32)]| {
             ctx.create_compute_pipeline(&ComputePipelineDesc {
                 name,
@@ -233,7 +233,7 @@ impl TileBinPass {
                 storage(&casters.pairs),
                 storage(counters),
                 storage(&self.tile_counts),
-                storage(&self.tile_offsets),
+                Binding::uniform_texel(&self.tile_offsets, R32UI),
                 storage(&self.tile_offsets),
                 Binding::uniform_texel(&lists.tile_max_len, R32UI),
                 Binding::uniform_texel(&clusters.boxes, RGBA32UI),
@@ -303,7 +303,7 @@ impl TileBinPass {
                 storage(&casters.pairs),
                 storage(counters),
                 storage(&self.tile_counts),
-                storage(&self.tile_offsets),
+                Binding::uniform_texel(&self.tile_offsets, R32UI),
                 storage(&self.tile_pairs),
                 Binding::uniform_texel(&lists.tile_max_len, R32UI),
                 Binding::uniform_texel(&clusters.boxes, RGBA32UI),
