@@ -111,11 +111,8 @@ void main() {
                 uvec4 e2_k = texelFetch(pairs_tb, int(4u * pk + 3u));
                 // The pairs whose rectangle meets the subgroup's texels
                 // with lists (one ballot); the others no lane touches.
-                uvec2 rmin_k = uvec2(ids_k.z & 0xffffu, ids_k.z >> 16);
-                uvec2 rmax_k = uvec2(ids_k.w & 0xffffu, ids_k.w >> 16);
-                bool meets = !(any(lessThan(sg_tmax, rmin_k)) || any(greaterThan(sg_tmin, rmax_k)));
-                uint in_group = min(group, window - j0);
-                uint meeting = subgroupBallot(meets).x & (in_group >= 32u ? 0xffffffffu : (1u << in_group) - 1u);
+                uint meeting = subgroupBallot(pair_meets(ids_k, sg_tmin, sg_tmax)).x
+                    & first_bits(min(group, window - j0));
                 while (meeting != 0u) {
                     uint lane = uint(findLSB(meeting));
                     meeting &= meeting - 1u;
@@ -125,9 +122,7 @@ void main() {
                     cf.e0 = uintBitsToFloat(subgroupShuffle(e0_k, lane));
                     cf.e1 = uintBitsToFloat(subgroupShuffle(e1_k, lane));
                     cf.e2 = uintBitsToFloat(subgroupShuffle(e2_k, lane));
-                    uvec2 rmin = uvec2(cf.ids.z & 0xffffu, cf.ids.z >> 16);
-                    uvec2 rmax = uvec2(cf.ids.w & 0xffffu, cf.ids.w >> 16);
-                    bool touches = has_list && !(any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax)))
+                    bool touches = has_list && pair_meets(cf.ids, texel, texel)
                         && (cf.e0.w == 0.0 || square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, vec2(cf.e0.w, cf.e1.w), lo, hi));
                     touching |= touches ? 1u << j : 0u;
                 }

@@ -153,6 +153,18 @@ struct CasterFace {
     vec4 e2;
 };
 
+// A pair's texel rectangle (CasterFace.ids z and w): its min and max corners.
+uvec2 pair_rect_min(uvec4 ids) { return uvec2(ids.z & 0xffffu, ids.z >> 16); }
+uvec2 pair_rect_max(uvec4 ids) { return uvec2(ids.w & 0xffffu, ids.w >> 16); }
+
+// Whether a pair's texel rectangle shares a texel with [tmin, tmax].
+bool pair_meets(uvec4 ids, uvec2 tmin, uvec2 tmax) {
+    return !(any(lessThan(tmax, pair_rect_min(ids))) || any(greaterThan(tmin, pair_rect_max(ids))));
+}
+
+// Bits 0 .. n - 1 (n <= 32): the lanes of a ballot's first n.
+uint first_bits(uint n) { return n >= 32u ? 0xffffffffu : (1u << n) - 1u; }
+
 layout(push_constant) uniform Push { LightPush pc; };
 // The global id of this run's triangle i: view samples name their own triangle globally.
 uint global_triangle(uint i) { return i + floatBitsToUint(pc.soft_light.z); }

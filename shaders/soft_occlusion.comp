@@ -310,23 +310,21 @@ shared uint kept_pairs[MAX_KEPT];
 shared uint kept_count;
 // Per subgroup: its samples' box (xyz) and texel rectangle (w: x | y << 16).
 shared vec4 chunk_lo[64], chunk_hi[64];
-// This invocation's subgroup: the texel rectangle of its samples
-// (keep_pairs), for the first loop's per-subgroup rectangle test.
-uvec2 subgroup_tmin, subgroup_tmax;
 
 // This workgroup's pairs that its samples may need, into kept_pairs; the
-// count of those kept. All invocations call it (barriers).
-uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra) {
+// count of those kept, and the texel rectangle of the subgroup's samples
+// (sg_tmin, sg_tmax: the first loop's per-subgroup test). All invocations
+// call it (barriers).
+uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, out uvec2 sg_tmin,
+                out uvec2 sg_tmax) {
     uint lid = gl_LocalInvocationID.x;
     // The chunk's box and texel rectangle: per subgroup, then over the
     // subgroups through shared memory; lanes without a sample add nothing.
     vec3 inf = vec3(1.0 / 0.0);
     vec3 sg_lo = subgroupMin(un.has_sample ? x : inf);
     vec3 sg_hi = subgroupMax(un.has_sample ? x : -inf);
-    uvec2 sg_tmin = subgroupMin(un.has_sample ? un.texel : uvec2(0xffffu));
-    uvec2 sg_tmax = subgroupMax(un.has_sample ? un.texel : uvec2(0u));
-    subgroup_tmin = sg_tmin;
-    subgroup_tmax = sg_tmax;
+    sg_tmin = subgroupMin(un.has_sample ? un.texel : uvec2(0xffffu));
+    sg_tmax = subgroupMax(un.has_sample ? un.texel : uvec2(0u));
     if (subgroupElect()) {
         chunk_lo[gl_SubgroupID] = vec4(sg_lo, uintBitsToFloat(sg_tmin.x | (sg_tmin.y << 16)));
         chunk_hi[gl_SubgroupID] = vec4(sg_hi, uintBitsToFloat(sg_tmax.x | (sg_tmax.y << 16)));
@@ -353,11 +351,8 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra) {
         bool keep = true;
         if (box) {
             uvec4 ids = texelFetch(pairs_tb, int(4u * pi));
-            uvec2 rmin = uvec2(ids.z & 0xffffu, ids.z >> 16);
-            uvec2 rmax = uvec2(ids.w & 0xffffu, ids.w >> 16);
             ClusterPlane plane = triangle_cluster_plane(triangles_tb, ids.x);
-            bool rect_misses = any(lessThan(tmax, rmin)) || any(greaterThan(tmin, rmax));
-            uint rule = rect_misses ? CLUSTER_LIGHT_SIDE : chunk_rule(plane, lo, hi);
+            uint rule = pair_meets(ids, tmin, tmax) ? chunk_rule(plane, lo, hi) : CLUSTER_LIGHT_SIDE;
             keep = rule == CLUSTER_KEEP;
             local_penumbra += rule == CLUSTER_OUTSIDE_PENUMBRA ? 1u : 0u;
         }
@@ -426,9 +421,7 @@ uint pair_planes_of(PairTexels f, uvec2 texel, uint own, vec3 x, vec3 o, float i
                     float lo_x, mat3 turn_back, out PairPlanes p) {
     p.ids = f.ids;
     uvec4 ids = p.ids;
-    uvec2 rmin = uvec2(ids.z & 0xffffu, ids.z >> 16);
-    uvec2 rmax = uvec2(ids.w & 0xffffu, ids.w >> 16);
-    if (any(lessThan(texel, rmin)) || any(greaterThan(texel, rmax)) || own == global_triangle(ids.x)) {
+    if (!pair_meets(ids, texel, texel) || own == global_triangle(ids.x)) {
         return PAIR_CULLED; // outside the influence region, or the sample's own triangle
     }
     uvec4 t0 = f.t0;
@@ -529,7 +522,8 @@ void main() {
     uvec4 qb = un.has_sample ? texelFetch(list_samples_tb, int(s)) : uvec4(0u);
     vec3 x = uintBitsToFloat(qb.xyz);
     uint chunk_dropped, chunk_penumbra;
-    uint kept = keep_pairs(un, x, chunk_dropped, chunk_penumbra);
+    uvec2 sg_tmin, sg_tmax;
+    uint kept = keep_pairs(un, x, chunk_dropped, chunk_penumbra, sg_tmin, sg_tmax);
     uint begin = 0u, end = kept;
     // Per-pixel rotation: x and each caster turned back by x's angle about
     // the light's axis through its centre, which keeps the light's bounding
@@ -588,11 +582,8 @@ void main() {
                 PairTexels fetched = fetch_pair(kept_pairs[w0 + k]);
                 // The pairs whose rectangle meets some texel of the
                 // subgroup's samples: the others every lane culls.
-                uvec2 rmin = uvec2(fetched.ids.z & 0xffffu, fetched.ids.z >> 16);
-                uvec2 rmax = uvec2(fetched.ids.w & 0xffffu, fetched.ids.w >> 16);
-                bool meets = !(any(lessThan(subgroup_tmax, rmin)) || any(greaterThan(subgroup_tmin, rmax)));
-                uint in_group = min(group, window - j0);
-                uint meeting = subgroupBallot(meets).x & (in_group >= 32u ? 0xffffffffu : (1u << in_group) - 1u);
+                uint meeting = subgroupBallot(pair_meets(fetched.ids, sg_tmin, sg_tmax)).x
+                    & first_bits(min(group, window - j0));
                 while (meeting != 0u) {
                     uint jj = uint(findLSB(meeting));
                     meeting &= meeting - 1u;

@@ -31,8 +31,7 @@ void main() {
         return;
     }
     CasterFace cf = pairs[i];
-    uvec2 rmin = uvec2(cf.ids.z & 0xffffu, cf.ids.z >> 16);
-    uvec2 rmax = uvec2(cf.ids.w & 0xffffu, cf.ids.w >> 16);
+    uvec2 rmin = pair_rect_min(cf.ids), rmax = pair_rect_max(cf.ids);
     uvec2 t0 = rmin / TILE, t1 = rmax / TILE;
     bool edges = cf.e0.w != 0.0;
     uint face = cf.ids.y;
