@@ -21,7 +21,9 @@ use crate::Result;
 
 /// The caster passes' pipelines and the pairs they write.
 pub struct CasterPass {
-    setup: ComputePipeline,
+    /// Setup, indexed by whether the run is soft (specialization constant
+    /// 8, `SOFT_SETUP`: each compiles the other kind's code out).
+    setup: [ComputePipeline; 2],
     clip_args: ComputePipeline,
     clip: ComputePipeline,
     /// Per triangle: its planes (`CasterPlanes`, 80 B).
@@ -47,21 +49,34 @@ impl CasterPass {
             sb,
             sb,
         ];
-        let make = |name, spirv, bindings: &[DescriptorKind]| {
+        let make = |name, spirv, bindings: &[DescriptorKind], spec: &[(u32, u32)]| {
             ctx.create_compute_pipeline(&ComputePipelineDesc {
                 name,
                 spirv,
                 bindings,
                 push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
-                specialization: &[],
+                specialization: spec,
             })
         };
         let mut args = BufferDesc::storage("caster_clip_args", 0);
         args.usage |= vk::BufferUsageFlags::INDIRECT_BUFFER;
         Ok(CasterPass {
-            setup: make("casters_setup", shaders::CASTERS_SETUP, &casters)?,
-            clip_args: make("casters_clip_args", shaders::CASTERS_CLIP_ARGS, &[sb; 2])?,
-            clip: make("casters_clip", shaders::CASTERS_CLIP, &casters)?,
+            setup: [
+                make("casters_setup", shaders::CASTERS_SETUP, &casters, &[(8, 0)])?,
+                make(
+                    "casters_setup_soft",
+                    shaders::CASTERS_SETUP,
+                    &casters,
+                    &[(8, 1)],
+                )?,
+            ],
+            clip_args: make(
+                "casters_clip_args",
+                shaders::CASTERS_CLIP_ARGS,
+                &[sb; 2],
+                &[],
+            )?,
+            clip: make("casters_clip", shaders::CASTERS_CLIP, &casters, &[])?,
             planes: GrowBuffer::storage("caster_planes"),
             pairs: GrowBuffer::storage("caster_faces"),
             clip_items: GrowBuffer::storage("caster_clip_items"),
@@ -87,6 +102,7 @@ impl CasterPass {
         counters: &GrowBuffer,
     ) -> Result<()> {
         let (triangles, nt) = (r.inputs.triangles, r.frame.nt);
+        let setup = &self.setup[usize::from(r.frame.push.soft[1] != 0)];
         r.pass("caster_setup", |rec, pc| {
             let casters = [
                 Binding::uniform_texel(triangles, RGBA32UI),
@@ -96,7 +112,7 @@ impl CasterPass {
                 storage(counters),
                 storage(&self.clip_items),
             ];
-            rec.dispatch(&self.setup, &casters, pc, groups(nt))?;
+            rec.dispatch(setup, &casters, pc, groups(nt))?;
             rec.barrier(Barrier::ComputeToCompute);
             let args = [storage(counters), storage(&self.clip_dispatch)];
             rec.dispatch(&self.clip_args, &args, pc, [1, 1, 1])?;
