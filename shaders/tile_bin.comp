@@ -56,7 +56,10 @@ void main() {
                 // The part of the tile inside the rectangle.
                 vec2 lo = vec2(max(uvec2(tx, ty) * TILE, rmin));
                 vec2 hi = vec2(min(uvec2(tx, ty) * TILE + TILE - 1u, rmax) + 1u);
-                if (edges && !square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, vec2(cf.e0.w, cf.e1.w), lo, hi)) {
+                // Soft pairs (the CLUSTERS pipeline) carry no edges
+                // (soft_caster): their edge test is compiled out, since
+                // lavapipe runs an `if` that no lane takes.
+                if (CLUSTERS == 0u && edges && !square_overlaps(cf.e0.xyz, cf.e1.xyz, cf.e2.xyz, vec2(cf.e0.w, cf.e1.w), lo, hi)) {
                     continue;
                 }
                 uint tile = base + ty * pc.more.y + tx;
