@@ -102,7 +102,7 @@ impl CasterPass {
         counters: &GrowBuffer,
     ) -> Result<()> {
         let (triangles, nt) = (r.inputs.triangles, r.frame.nt);
-        let setup = &self.setup[usize::from(r.frame.push.soft[1] != 0)];
+        let setup = &self.setup[usize::from(r.frame.is_soft())];
         r.pass("caster_setup", |rec, pc| {
             let casters = [
                 Binding::uniform_texel(triangles, RGBA32UI),

@@ -142,6 +142,12 @@ impl LightFrame {
         }
     }
 
+    /// Whether the light has extent (`is_soft` in `shadow_common.glsl`):
+    /// the passes whose soft and hard code are separate pipelines pick by it.
+    pub fn is_soft(&self) -> bool {
+        self.push.soft[1] != 0
+    }
+
     /// The occlusion work units (0 before the tiles are counted).
     pub fn units(&self) -> u32 {
         self.push.more[3]

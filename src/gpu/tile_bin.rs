@@ -297,7 +297,7 @@ impl TileBinPass {
         r.cmd.fill_buffer(self.tile_counts.slice(), 0)?;
         r.cmd.barrier(Barrier::TransferToCompute);
         let pair_capacity = r.frame.pair_capacity;
-        let soft = r.frame.push.soft[1] != 0;
+        let soft = r.frame.is_soft();
         r.pass("tile_bin_scatter", |rec, pc| {
             let bindings = [
                 storage(&casters.pairs),
