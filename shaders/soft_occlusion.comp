@@ -55,6 +55,16 @@ layout(constant_id = 7) const uint WEDGE_RULE = 1u;
 #endif
 // The masks of exact mode (per-sample tests, with their rounding margins).
 #define EXACT_MASKS (EXACT != 0 || SURE != 0)
+// The wedge rule runs in a window while the second loop's iterations it
+// saved, times WEDGE_WORTH, are at least its own (an iteration of the
+// second loop costs about WEDGE_WORTH of the rule's): with one block of
+// look-ups a second-loop iteration is cheap, with more, or per-sample
+// tests, the rule always runs (0).
+#if EXACT || LUT_BLOCKS > 1
+#define WEDGE_WORTH 0
+#else
+#define WEDGE_WORTH 1
+#endif
 #if EXACT
 #define BLOCKS 1
 #else
@@ -564,6 +574,11 @@ void main() {
         // Lanes without a sample take part in the first loop's fetches
         // (below) and count nothing.
         bool full = !un.has_sample;
+#if EXACT_MASKS && WEDGE_WORTH != 0
+        // The wedge rule's loop iterations so far, and the second loop's
+        // iterations it saved (the busiest lane's, per window).
+        uint wedge_cost = 0u, wedge_saved = 0u;
+#endif
         for (uint w0 = begin; w0 < end; w0 += PAIR_WINDOW) {
             // The subgroup leaves together: its lanes stay converged for
             // the first loop's shuffles.
@@ -609,8 +624,18 @@ void main() {
             // iterations fall where it rejects most (ToyCar: 2.16 -> 0.43 M
             // for the subgroups).
             if (WEDGE_RULE != 0u) {
-                uint candidates = full ? 0u : passed;
-                passed = 0u;
+                // Run while it pays (WEDGE_WORTH): the subgroup's trip
+                // counts so far decide, the same for every lane.
+#if WEDGE_WORTH != 0
+                bool run = wedge_saved * uint(WEDGE_WORTH) >= wedge_cost;
+#else
+                bool run = true;
+#endif
+                uint candidates = full || !run ? 0u : passed;
+                passed = run ? 0u : passed;
+#if WEDGE_WORTH != 0
+                uint trips = subgroupMax(uint(bitCount(candidates)));
+#endif
                 while (candidates != 0u) {
                     uint j = uint(findLSB(candidates));
                     candidates &= candidates - 1u;
@@ -620,6 +645,11 @@ void main() {
                     passed |= wedge_miss ? 0u : 1u << j;
                     wedge_rejected += wedge_miss ? 1u : 0u;
                 }
+#if WEDGE_WORTH != 0
+                uint left = subgroupMax(full || !run ? 0u : uint(bitCount(passed)));
+                wedge_cost += trips;
+                wedge_saved += trips - left;
+#endif
             }
 #endif
             past_sphere += uint(bitCount(passed));
