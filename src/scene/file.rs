@@ -175,8 +175,10 @@ pub struct ShadowSettings {
     /// sample passes the light's bounding sphere (two edges' planes
     /// together leave it outside, where neither does alone) is skipped
     /// before its look-ups or per-light-sample tests (exact and look-up
-    /// modes; `soft_occlusion.comp`: `wedges_miss_light`). The results
-    /// are the same either way; off only to measure what it saves.
+    /// modes; `soft_occlusion.comp`: `wedges_miss_light`; in look-up
+    /// mode with one 128-sample block, each subgroup runs it while it
+    /// pays). The results are the same either way; off only to measure
+    /// what it saves.
     pub wedge_rule: bool,
 }
 
