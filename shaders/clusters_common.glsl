@@ -21,6 +21,7 @@
 #define CLUSTER_LIGHT_SIDE 1u
 #define CLUSTER_BEHIND_CLOSED 2u
 #define CLUSTER_OUTSIDE_PENUMBRA 3u
+#define CLUSTER_BEYOND_REACH 4u
 // 64 f32 ulps: the rounding bound of a per-sample plane test, per unit of
 // the magnitudes it involves (as ROUNDING_BOUND in soft_occlusion.comp).
 #define CLUSTER_ROUNDING (64.0 * 1.1920929e-7)
@@ -196,18 +197,56 @@ uint cull_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
     return CLUSTER_KEEP;
 }
 
+// The reach rule (soft shadows): a caster whose every point is farther
+// from the light's centre o than both the view sample x and the light's
+// bounding radius blocks nothing from x, since every segment from x to a
+// light sample stays within max(|x - o|, radius) of o (a ball is convex).
+// The caster's distance is bounded below through its vertices' mean g:
+// |o - g| - max |v - g| (true for any point g); each of the two lengths
+// comes out of f32 within a few ulps of itself, and so does |x - o|, so a
+// relative margin of the three holds the bound. Soft occlusion culls
+// (sample, pair) by it with REACH_MARGIN, a chunk's (pair, box) with
+// REACH_MARGIN_BOX (far above the sample's margin and its rounding: a pair
+// dropped for a box is one every sample in it culls). Twin:
+// cpu::clusters::caster_sphere and beyond_reach.
+#define REACH_MARGIN 1e-5
+#define REACH_MARGIN_BOX 1e-4
+
+// The bound's two lengths: |o - g| and max |v - g|.
+vec2 caster_sphere(vec3 o, vec3 a, vec3 b, vec3 c) {
+    vec3 g = (a + b + c) * (1.0 / 3.0);
+    vec3 da = a - g, db = b - g, dc = c - g;
+    float rho2 = max(max(dot(da, da), dot(db, db)), dot(dc, dc));
+    return vec2(length(o - g), sqrt(rho2));
+}
+
+// Whether the caster of caster_sphere `s` lies beyond `reach` (the largest
+// of the light's radius and the distances to o of the points it stands
+// for) by `margin` of the magnitudes (NaN or infinite: no).
+bool beyond_reach(vec2 s, float reach, float margin) {
+    return s.x - s.y > reach + margin * (s.x + s.y + reach);
+}
+
 // Soft occlusion's rule for a chunk of samples (kept_pairs): cull_rule,
-// or the box outside the caster's penumbra volume (outside_penumbra).
+// the box outside the caster's penumbra volume (outside_penumbra), or the
+// caster beyond the box's reach (beyond_reach).
 // Tile binning leaves the penumbra rule out: per tile it cost more than
 // it saved (torus_knot:100000: binning 0.6 -> 1.6 s, occlusion unchanged),
 // the chunks' own boxes drop the same pairs.
 uint chunk_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
     uint rule = cull_rule(cp, lo, hi);
-    if (rule != CLUSTER_KEEP || !is_soft() || cp.n == vec3(0.0)) {
+    if (rule != CLUSTER_KEEP || !is_soft()) {
         return rule;
     }
     vec3 c = 0.5 * (lo + hi), h = 0.5 * (hi - lo);
-    return outside_penumbra(cp, c, h, cluster_margin(cp, lo, hi)) ? CLUSTER_OUTSIDE_PENUMBRA : CLUSTER_KEEP;
+    if (cp.n != vec3(0.0) && outside_penumbra(cp, c, h, cluster_margin(cp, lo, hi))) {
+        return CLUSTER_OUTSIDE_PENUMBRA;
+    }
+    // The reach rule: the box's farthest corner from the light's centre.
+    vec3 o = pc.origin.xyz;
+    float reach = max(length(max(abs(lo - o), abs(hi - o))), pc.soft_light.x);
+    return beyond_reach(caster_sphere(o, cp.a, cp.b, cp.c), reach, REACH_MARGIN_BOX) ? CLUSTER_BEYOND_REACH
+                                                                                   : CLUSTER_KEEP;
 }
 
 

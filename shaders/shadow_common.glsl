@@ -90,7 +90,12 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 32u;
 // exact mode. It does not depend on the order of the lists' atomics (the
 // tests and the chunks' counts do), so a frame counts the same every run.
 #define COUNTER_SAMPLE_VISITS 22
-#define COUNTER_COUNT 23
+// Soft occlusion, the reach rule (clusters_common.glsl): (view sample,
+// pair) visits culled before the test, and (pair, chunk) visits that a
+// chunk's box dropped (of COUNTER_CLUSTER_CHUNK's).
+#define COUNTER_BEYOND_REACH 23
+#define COUNTER_CLUSTER_BEYOND_REACH 24
+#define COUNTER_COUNT 25
 
 // Frame-wide parameters (push constants).
 struct LightPush {

@@ -325,8 +325,8 @@ shared vec4 chunk_lo[64], chunk_hi[64];
 // count of those kept, and the texel rectangle of the subgroup's samples
 // (sg_tmin, sg_tmax: the first loop's per-subgroup test). All invocations
 // call it (barriers).
-uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, out uvec2 sg_tmin,
-                out uvec2 sg_tmax) {
+uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, out uint beyond_chunk,
+                out uvec2 sg_tmin, out uvec2 sg_tmax) {
     uint lid = gl_LocalInvocationID.x;
     // The chunk's box and texel rectangle: per subgroup, then over the
     // subgroups through shared memory; lanes without a sample add nothing.
@@ -355,7 +355,7 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, o
     }
     bool any_sample = lo.x <= hi.x;
     bool box = any_sample && uintBitsToFloat(texelFetch(boxes_tb, int(2u * un.tile)).w) != 0.0;
-    uint local_dropped = 0u, local_penumbra = 0u;
+    uint local_dropped = 0u, local_penumbra = 0u, local_beyond = 0u;
     for (uint k = un.pair_begin + lid; k < un.pair_end; k += 64u) {
         uint pi = texelFetch(tile_pairs_tb, int(k)).x;
         bool keep = true;
@@ -365,6 +365,7 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, o
             uint rule = pair_meets(ids, tmin, tmax) ? chunk_rule(plane, lo, hi) : CLUSTER_LIGHT_SIDE;
             keep = rule == CLUSTER_KEEP;
             local_penumbra += rule == CLUSTER_OUTSIDE_PENUMBRA ? 1u : 0u;
+            local_beyond += rule == CLUSTER_BEYOND_REACH ? 1u : 0u;
         }
         // One shared atomic per subgroup (lavapipe serializes per-lane atomics).
         uvec4 ballot = subgroupBallot(keep);
@@ -383,6 +384,7 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, o
     barrier();
     dropped = local_dropped;
     penumbra = local_penumbra;
+    beyond_chunk = local_beyond;
     return kept_count;
 }
 
@@ -531,9 +533,13 @@ void main() {
     float inv_r = 1.0 / pc.soft_light.x;
     uvec4 qb = un.has_sample ? texelFetch(list_samples_tb, int(s)) : uvec4(0u);
     vec3 x = uintBitsToFloat(qb.xyz);
-    uint chunk_dropped, chunk_penumbra;
+    uint chunk_dropped, chunk_penumbra, chunk_beyond;
     uvec2 sg_tmin, sg_tmax;
-    uint kept = keep_pairs(un, x, chunk_dropped, chunk_penumbra, sg_tmin, sg_tmax);
+    uint kept = keep_pairs(un, x, chunk_dropped, chunk_penumbra, chunk_beyond, sg_tmin, sg_tmax);
+    // The reach rule's bound for x: x's distance to the light's centre, or
+    // the light's radius.
+    float reach_x = max(length(x - pc.origin.xyz), pc.soft_light.x);
+    uint beyond_tests = 0u;
     uint begin = 0u, end = kept;
     // Per-pixel rotation: x and each caster turned back by x's angle about
     // the light's axis through its centre, which keeps the light's bounding
@@ -595,6 +601,10 @@ void main() {
             for (uint j0 = 0u; j0 < window; j0 += group) {
                 uint k = min(j0 + gl_SubgroupInvocationID % group, window - 1u);
                 PairTexels fetched = fetch_pair(kept_pairs[w0 + k]);
+                // Per pair, the reach rule's caster bound (each lane takes
+                // pair jj's by a shuffle).
+                vec2 sphere = caster_sphere(o, uintBitsToFloat(fetched.t0.xyz), uintBitsToFloat(fetched.t1.xyz),
+                                            uintBitsToFloat(fetched.t2.xyz));
                 // The pairs whose rectangle meets some texel of the
                 // subgroup's samples: the others every lane culls.
                 uint meeting = subgroupBallot(pair_meets(fetched.ids, sg_tmin, sg_tmax)).x
@@ -606,7 +616,12 @@ void main() {
                     PairPlanes p;
                     uint rule = pair_planes_of(shuffle_pair(fetched, jj), texel, qb.w, x, o,
                                                inv_r, ox, lo_x, turn_back, p);
+                    // The reach rule: culled, not a test.
+                    bool beyond = rule != PAIR_CULLED
+                        && beyond_reach(subgroupShuffle(sphere, jj), reach_x, REACH_MARGIN);
+                    rule = beyond ? PAIR_CULLED : rule;
                     if (!full) {
+                        beyond_tests += beyond ? 1u : 0u;
                         // Tests in the low half, plane rejections in the high
                         // half (at most MAX_KEPT of each per invocation): one add.
                         tests += rule == PAIR_CULLED ? 0u : (rule == PAIR_PLANE_REJECTED ? 0x10001u : 1u);
@@ -791,9 +806,15 @@ void main() {
     if (subgroupElect() && sum_visits != 0u) {
         atomicAdd(counters[COUNTER_SAMPLE_VISITS], sum_visits);
     }
+    uint sum_beyond_chunk = subgroupAdd(chunk_beyond);
+    uint sum_beyond = subgroupAdd(beyond_tests);
     if (subgroupElect() && sum_dropped != 0u) {
         atomicAdd(counters[COUNTER_CLUSTER_CHUNK], sum_dropped);
         atomicAdd(counters[COUNTER_CLUSTER_OUTSIDE_PENUMBRA], sum_penumbra);
+        atomicAdd(counters[COUNTER_CLUSTER_BEYOND_REACH], sum_beyond_chunk);
+    }
+    if (subgroupElect() && sum_beyond != 0u) {
+        atomicAdd(counters[COUNTER_BEYOND_REACH], sum_beyond);
     }
 #if EXACT_MASKS
     uint sum_wedge = subgroupAdd(wedge_rejected);

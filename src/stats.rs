@@ -68,6 +68,12 @@ pub struct ShadowStats {
     /// penumbra volume (one edge's plane through any sample of the box
     /// leaves the whole light outside the caster's cone).
     pub chunk_pairs_outside_penumbra: u32,
+    /// Soft occlusion: of [`Self::chunk_pairs_dropped`], the visits that
+    /// the reach rule dropped: every point of the caster farther from the
+    /// light's centre than the chunk's samples and the light's radius
+    /// (`COUNTER_CLUSTER_BEYOND_REACH`).
+    #[serde(default)]
+    pub chunk_pairs_beyond_reach: u32,
     /// Bytes of GPU buffers the passes used.
     pub gpu_buffer_bytes: u64,
     /// Buffers and images the passes created (0 once warm).
@@ -130,6 +136,13 @@ pub struct SoftStats {
     /// atomics filled the lists (`COUNTER_SAMPLE_VISITS`).
     #[serde(default)]
     pub sample_unit_visits: u32,
+    /// (View sample, triangle) visits that the reach rule culled before the
+    /// test (not counted as tests): every point of the caster farther from
+    /// the light's centre than the sample and the light's radius, so that
+    /// no segment from the sample to the light meets it
+    /// (`COUNTER_BEYOND_REACH`).
+    #[serde(default)]
+    pub beyond_reach_pairs: u32,
     /// Whether this run built the plane look-up texture (it is built once
     /// per light shape and reused: its time, `ms.lut_build`, appears only
     /// in the frame that built it).
@@ -211,6 +224,7 @@ impl ShadowStats {
             bins_dropped_behind_closed: c[counter::CLUSTER_BEHIND_CLOSED],
             chunk_pairs_dropped: c[counter::CLUSTER_CHUNK],
             chunk_pairs_outside_penumbra: c[counter::CLUSTER_OUTSIDE_PENUMBRA],
+            chunk_pairs_beyond_reach: c[counter::CLUSTER_BEYOND_REACH],
             gpu_buffer_bytes: out.buffer_bytes,
             allocations: out.allocations,
             ms,
@@ -230,6 +244,7 @@ impl ShadowStats {
                 wedge_rejected_tests: c[counter::WEDGE_REJECTED],
                 past_sphere_tests: c[counter::PAST_SPHERE],
                 sample_unit_visits: c[counter::SAMPLE_VISITS],
+                beyond_reach_pairs: c[counter::BEYOND_REACH],
                 lut_built: out.soft.as_ref().is_some_and(|s| s.lut_built),
                 unsure_bits: unsure,
                 unsure_share: unsure as f64

@@ -1,6 +1,8 @@
 //! View-sample clusters (`gpu::clusters`) drop (caster, tile) pairs before
 //! occlusion, and soft occlusion's wedge rule skips pairs before their
 //! look-ups or per-light-sample tests; neither may ever change a result.
+//! The reach rule (a caster farther from the light's centre than a chunk's
+//! samples and the light) drops pairs per chunk too.
 //! Every case runs with the clusters on and off (and soft ones in exact and
 //! look-up modes with the wedge rule off) and the runs must agree bit for
 //! bit: hard shadows' lit flags, and soft shadows' masks in every mode. The cases aim at the
@@ -64,6 +66,8 @@ fn clusters_change_no_result() {
     let mut lut_one_block_wedge = 0u64;
     let (mut light_side, mut behind_closed, mut penumbra, mut chunk, mut cases) =
         (0u64, 0u64, 0u64, 0u64, 0);
+    // The reach rule's (pair, chunk) drops and (sample, pair) culls.
+    let (mut chunk_beyond, mut beyond) = (0u64, 0u64);
     for spec in [
         "builtin:demo",
         "builtin:plane_sphere",
@@ -152,9 +156,10 @@ fn clusters_change_no_result() {
                         without.stats.bins_dropped_light_side,
                         without.stats.bins_dropped_behind_closed,
                         without.stats.chunk_pairs_outside_penumbra,
-                        without.stats.chunk_pairs_dropped
+                        without.stats.chunk_pairs_dropped,
+                        without.stats.chunk_pairs_beyond_reach
                     ),
-                    (0, 0, 0, 0),
+                    (0, 0, 0, 0, 0),
                     "off drops nothing"
                 );
                 let (a, b, p) = (
@@ -190,6 +195,10 @@ fn clusters_change_no_result() {
                     outcomes[3] += soft.past_sphere_tests as u64;
                 }
                 chunk += with.stats.chunk_pairs_dropped as u64;
+                chunk_beyond += with.stats.chunk_pairs_beyond_reach as u64;
+                // The reach rule per (sample, pair) runs with the clusters
+                // off too (it is occlusion's own early out).
+                beyond += with.stats.soft.as_ref().unwrap().beyond_reach_pairs as u64;
                 light_side += a;
                 behind_closed += b;
                 penumbra += p;
@@ -198,10 +207,15 @@ fn clusters_change_no_result() {
         }
     }
     eprintln!(
-        "{cases} cases; bins dropped: {light_side} light side, {behind_closed} behind closed; chunk visits dropped: {chunk} ({penumbra} outside penumbra)"
+        "{cases} cases; bins dropped: {light_side} light side, {behind_closed} behind closed; chunk visits dropped: {chunk} ({penumbra} outside penumbra, {chunk_beyond} beyond reach); (sample, pair) visits beyond reach: {beyond}"
     );
     assert!(
-        light_side > 0 && behind_closed > 0 && penumbra > 0 && chunk > 0,
+        light_side > 0
+            && behind_closed > 0
+            && penumbra > 0
+            && chunk > 0
+            && chunk_beyond > 0
+            && beyond > 0,
         "every rule exercised"
     );
     eprintln!(

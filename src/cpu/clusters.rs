@@ -85,6 +85,10 @@ pub enum ClusterRule {
     /// through the sample leaves the whole light outside the caster's cone
     /// (soft shadows; [`chunk_rule`] only).
     OutsidePenumbra,
+    /// Every point of the caster farther from the light's centre than
+    /// every sample of the box and the light's radius ([`beyond_reach`];
+    /// soft shadows, [`chunk_rule`] only).
+    BeyondReach,
 }
 
 /// A caster's supporting plane as the rules see it (`ClusterPlane`).
@@ -151,6 +155,40 @@ fn side_of(s: f32, need: f32) -> f32 {
     }
 }
 
+/// The reach rule's margin per (view sample, caster) (`REACH_MARGIN`).
+pub const REACH_MARGIN: f32 = 1e-5;
+/// The reach rule's margin per (box, caster) (`REACH_MARGIN_BOX`): far
+/// above [`REACH_MARGIN`] and the rounding of both, so that a caster
+/// dropped for a box is one that every sample in it culls.
+pub const REACH_MARGIN_BOX: f32 = 1e-4;
+
+/// The reach rule's lower bound on the distance from `o` to triangle
+/// `v` (`caster_sphere`): `(|o - g|, max |v_i - g|)`, `g` the vertices'
+/// mean; the distance is at least the first less the second, for any `g`.
+pub fn caster_sphere(o: Vec3, [a, b, c]: [Vec3; 3]) -> (f32, f32) {
+    let g = (a + b + c) * (1.0 / 3.0);
+    let (da, db, dc) = (a - g, b - g, c - g);
+    let rho2 = da.dot(da).max(db.dot(db)).max(dc.dot(dc));
+    ((o - g).length(), rho2.sqrt())
+}
+
+/// The reach rule (`beyond_reach`): whether a caster whose
+/// [`caster_sphere`] is `s` lies farther than `reach` from the light's
+/// centre by `margin` of the magnitudes. `reach` is the larger of the
+/// light's bounding radius and the distance from the centre of every view
+/// sample the test stands for; then no segment from such a sample to a
+/// light sample meets the caster (every point of it is within `reach` of
+/// the centre: a ball is convex). NaN or infinite: false.
+pub fn beyond_reach((dg, rho): (f32, f32), reach: f32, margin: f32) -> bool {
+    dg - rho > reach + margin * (dg + rho + reach)
+}
+
+/// The reach of a box of view samples for a light of radius `r` centred
+/// at `o`: the distance from `o` of the box's farthest corner, or `r`.
+pub fn box_reach(b: &TileBox, o: Vec3, r: f32) -> f32 {
+    (b.lo - o).abs().max((b.hi - o).abs()).length().max(r)
+}
+
 /// The rule (if any) that drops the caster for every sample of `b`.
 pub fn cull_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option<ClusterRule> {
     if p.n == Vec3::ZERO {
@@ -172,20 +210,27 @@ pub fn cull_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option<
 }
 
 /// Soft occlusion's rule for a chunk of samples (`chunk_rule`):
-/// [`cull_rule`], or the box outside the caster's penumbra volume.
+/// [`cull_rule`], the box outside the caster's penumbra volume, or the
+/// caster beyond the box's reach ([`beyond_reach`] with
+/// [`REACH_MARGIN_BOX`]).
 pub fn chunk_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option<ClusterRule> {
     let rule = cull_rule(p, b, light);
     let ClusterLight::Sphere(o, r_light) = *light else {
         return rule;
     };
-    if rule.is_some() || p.n == Vec3::ZERO {
+    if rule.is_some() {
         return rule;
     }
     let c = 0.5 * (b.lo + b.hi);
     let h = 0.5 * (b.hi - b.lo);
     let scale = p.a.length() + o.length() + r_light + b.lo.abs().max(b.hi.abs()).length();
     let m = CLUSTER_MARGIN * scale;
-    outside_penumbra(p, c, h, o, r_light, m).then_some(ClusterRule::OutsidePenumbra)
+    if p.n != Vec3::ZERO && outside_penumbra(p, c, h, o, r_light, m) {
+        return Some(ClusterRule::OutsidePenumbra);
+    }
+    let reach = box_reach(b, o, r_light);
+    beyond_reach(caster_sphere(o, [p.a, p.b, p.c]), reach, REACH_MARGIN_BOX)
+        .then_some(ClusterRule::BeyondReach)
 }
 
 /// The bounds of `dot(g, x - p)` over the box (centre `bc`, half extent `bh`).
@@ -416,5 +461,158 @@ mod tests {
             }
         }
         assert!(dropped * 10 > tried, "{dropped} of {tried} boxes dropped");
+    }
+
+    /// The distance in f64 from `p` to triangle `v` (its nearest point:
+    /// Ericson, Real-Time Collision Detection §5.1.5).
+    fn triangle_distance(p: glam::DVec3, [a, b, c]: [glam::DVec3; 3]) -> f64 {
+        let (ab, ac, ap) = (b - a, c - a, p - a);
+        let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+        let q = 'q: {
+            if d1 <= 0.0 && d2 <= 0.0 {
+                break 'q a;
+            }
+            let bp = p - b;
+            let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+            if d3 >= 0.0 && d4 <= d3 {
+                break 'q b;
+            }
+            let vc = d1 * d4 - d3 * d2;
+            if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+                break 'q a + ab * (d1 / (d1 - d3));
+            }
+            let cp = p - c;
+            let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+            if d6 >= 0.0 && d5 <= d6 {
+                break 'q c;
+            }
+            let vb = d5 * d2 - d1 * d6;
+            if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+                break 'q a + ac * (d2 / (d2 - d6));
+            }
+            let va = d3 * d6 - d5 * d4;
+            if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+                break 'q b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+            }
+            let den = 1.0 / (va + vb + vc);
+            a + ab * (vb * den) + ac * (vc * den)
+        };
+        let d = (p - q).length();
+        // A triangle of zero area (f32 vertices that coincide): its edges.
+        let segment = |u: glam::DVec3, w: glam::DVec3| {
+            let e = w - u;
+            let t = if e.length_squared() > 0.0 {
+                ((p - u).dot(e) / e.length_squared()).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (p - (u + e * t)).length()
+        };
+        let edges = segment(a, b).min(segment(b, c)).min(segment(c, a));
+        if d.is_nan() {
+            edges
+        } else {
+            d.min(edges)
+        }
+    }
+
+    #[test]
+    fn the_reach_rule_drops_only_casters_beyond_the_samples_and_the_light() {
+        // Random casters (small, large, slivers), light spheres and boxes,
+        // near the camera and 1e5 away from it, with casters placed just
+        // beyond or just within the reach: wherever the rule culls a
+        // (sample, caster), the caster's true (f64) distance from the
+        // light's centre passes both the sample's and the light's radius
+        // (so no segment between them meets it); wherever it drops a
+        // (box, caster), it culls every point tried in the box. And it must
+        // cull and drop some, and keep some just inside, or this proves nothing.
+        struct Xorshift(u64);
+        impl Xorshift {
+            fn f(&mut self) -> f64 {
+                self.0 ^= self.0 << 13;
+                self.0 ^= self.0 >> 7;
+                self.0 ^= self.0 << 17;
+                (self.0 >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+            }
+            fn v(&mut self) -> glam::DVec3 {
+                glam::DVec3::new(self.f(), self.f(), self.f())
+            }
+        }
+        let mut g = Xorshift(0x9e3779b97f4a7c15);
+        let (mut culled, mut kept_near, mut dropped, mut tried) = (0, 0, 0, 0);
+        for case in 0..20000 {
+            let offset = if case % 2 == 0 {
+                glam::DVec3::ZERO
+            } else {
+                g.v() * 1e5
+            };
+            let o = offset + g.v();
+            let r = 0.01 + g.f().abs();
+            // A box of samples around o, sometimes inside the light's sphere.
+            let centre = o + g.v() * (0.5 + 4.0 * g.f().abs());
+            let half = g.v().abs() * 0.5 * g.f().abs();
+            let b = TileBox {
+                lo: (centre - half).as_vec3(),
+                hi: (centre + half).as_vec3(),
+            };
+            // The light as the GPU has it: a centre and a radius in f32
+            // (the radius rounded up over the samples: soft_light.rs).
+            let o32 = o.as_vec3();
+            let r32 = r as f32;
+            let (o, r) = (o32.as_dvec3(), r32 as f64);
+            let reach_box = box_reach(&b, o32, r32) as f64;
+            // A caster around a point at the box's reach times 1 + s, s
+            // from -0.01 to 0.01 (and a few within 1e-6): small, large or
+            // a sliver.
+            let s = if case % 5 == 0 {
+                g.f() * 1e-6
+            } else {
+                g.f() * 0.01
+            };
+            let dir = g.v().normalize_or(glam::DVec3::X);
+            let at = o + dir * reach_box * (1.0 + s);
+            let size = match case % 3 {
+                0 => 1e-3,
+                1 => 0.3,
+                _ => 3.0,
+            } * reach_box;
+            let mut tri = [at + g.v() * size, at + g.v() * size, at + g.v() * size];
+            if case % 7 == 0 {
+                tri[2] = tri[0] + (tri[1] - tri[0]) * 0.5 + g.v() * size * 1e-6;
+            }
+            let tri32 = tri.map(|t| t.as_vec3());
+            let sphere = caster_sphere(o32, tri32);
+            let distance = triangle_distance(o, tri32.map(|t| t.as_dvec3()));
+            tried += 1;
+            let box_drops = beyond_reach(sphere, box_reach(&b, o32, r32), REACH_MARGIN_BOX);
+            dropped += box_drops as u32;
+            for k in 0..27 {
+                let t = Vec3::new((k % 3) as f32, (k / 3 % 3) as f32, (k / 9) as f32) * 0.5;
+                let x = b.lo + (b.hi - b.lo) * t;
+                let reach = (x - o32).length().max(r32);
+                let culls = beyond_reach(sphere, reach, REACH_MARGIN);
+                let true_reach = (x.as_dvec3() - o).length().max(r);
+                if culls {
+                    culled += 1;
+                    assert!(
+                        distance > true_reach,
+                        "case {case}: {tri32:?} culled for {x} (light {o} r {r}): distance {distance}, reach {true_reach}"
+                    );
+                } else if distance < true_reach * 1.01 && distance > true_reach {
+                    kept_near += 1;
+                }
+                assert!(
+                    !box_drops || culls,
+                    "case {case}: {tri32:?} dropped for the box {b:?} but not culled for {x}"
+                );
+            }
+        }
+        eprintln!(
+            "reach rule: culled {culled}, dropped {dropped} of {tried}, kept near {kept_near}"
+        );
+        assert!(
+            culled > 10000 && dropped > 1000 && kept_near > 100,
+            "culled {culled}, dropped {dropped} of {tried}, kept near the reach {kept_near}"
+        );
     }
 }

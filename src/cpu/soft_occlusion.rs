@@ -4,6 +4,7 @@
 
 use glam::Vec3;
 
+use super::clusters::{beyond_reach, caster_sphere, REACH_MARGIN};
 use super::plane_lut::{blocks, lut_index, BlockBits};
 
 /// How the bits of a plane are found.
@@ -27,7 +28,8 @@ pub enum PlaneBits<'a> {
 /// hides from view sample x, all camera-relative, for a light bounded by
 /// (origin, radius); `closed` triangles block only light samples behind
 /// their oriented plane. `None` when the pair is not tested (x on the
-/// plane, or behind a closed triangle). The same arithmetic as
+/// plane, behind a closed triangle, or the triangle beyond the reach of x
+/// and the light: [`beyond_reach`]). The same arithmetic as
 /// `soft_occlusion.comp`, sphere rejection included. An alpha-tested
 /// triangle blocks a light sample `l` only where `opaque(l)` (its alpha
 /// test where the segment from x to l crosses it: [`crate::cpu::alpha`]);
@@ -49,6 +51,12 @@ pub fn blocked_bits(
     let n = (b - a).cross(c - a);
     let sx = n.dot(x - a);
     if sx == 0.0 || sx.is_nan() || (closed && sx < 0.0) {
+        return None;
+    }
+    // The reach rule: the caster lies farther from the light's centre than
+    // x and the light reach; not a test.
+    let reach = (x - origin).length().max(radius);
+    if beyond_reach(caster_sphere(origin, [a, b, c]), reach, REACH_MARGIN) {
         return None;
     }
     let exact = matches!(bits, PlaneBits::Exact { .. });
@@ -289,7 +297,8 @@ mod tests {
                 &PlaneBits::Exact { samples: &samples },
                 None,
             )
-            .unwrap();
+            // (None: beyond the reach rule, blocking nothing.)
+            .unwrap_or_default();
             let blocks_any = bits.iter().flatten().any(|&w| w != 0);
             blocking += blocks_any as u32;
             // Whether the cone from x clearly passes the light: its axis

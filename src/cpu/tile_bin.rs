@@ -117,8 +117,11 @@ pub fn bin_pairs(
             match rule {
                 Some(ClusterRule::LightSide) => bins.dropped_light_side += 1,
                 Some(ClusterRule::BehindClosed) => bins.dropped_behind_closed += 1,
-                // (cull_rule has no penumbra rule: soft occlusion's chunks apply it.)
-                Some(ClusterRule::OutsidePenumbra) | None => bins.tiles[tile].push(i as u32),
+                // (cull_rule has no penumbra or reach rule: soft
+                // occlusion's chunks apply them.)
+                Some(ClusterRule::OutsidePenumbra | ClusterRule::BeyondReach) | None => {
+                    bins.tiles[tile].push(i as u32)
+                }
             }
         }
     }

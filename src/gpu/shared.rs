@@ -219,9 +219,15 @@ pub mod counter {
     /// pass in exact mode. Unlike the tests, it does not depend on the
     /// order in which atomics filled the lists.
     pub const SAMPLE_VISITS: usize = 22;
+    /// Soft occlusion: (view sample, pair) visits that the reach rule
+    /// culled before the test (`clusters_common.glsl`: `beyond_reach`).
+    pub const BEYOND_REACH: usize = 23;
+    /// Soft occlusion: of [`CLUSTER_CHUNK`]'s visits, those that the reach
+    /// rule dropped for the chunk's box.
+    pub const CLUSTER_BEYOND_REACH: usize = 24;
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.
-    pub const COUNT: usize = 23;
+    pub const COUNT: usize = 25;
 
     /// The (low, high) slot pairs that hold 64-bit sums (the high word
     /// right after the low one: `count_wide` in soft_occlusion.comp).
@@ -399,6 +405,8 @@ pub(crate) mod tests {
             ("GROUPS_EVERY_HI", counter::GROUPS_EVERY_HI),
             ("WEDGE_REJECTED", counter::WEDGE_REJECTED),
             ("SAMPLE_VISITS", counter::SAMPLE_VISITS),
+            ("BEYOND_REACH", counter::BEYOND_REACH),
+            ("CLUSTER_BEYOND_REACH", counter::CLUSTER_BEYOND_REACH),
             ("COUNT", counter::COUNT),
         ] {
             assert_eq!(
