@@ -540,6 +540,9 @@ void main() {
     // the light's radius.
     float reach_x = max(length(x - pc.origin.xyz), pc.soft_light.x);
     uint beyond_tests = 0u;
+    // The subgroup's largest: a pair beyond it is one every lane culls
+    // (beyond_reach grows with the reach), left out of the loop.
+    float sg_reach = subgroupMax(un.has_sample ? reach_x : 0.0);
     uint begin = 0u, end = kept;
     // Per-pixel rotation: x and each caster turned back by x's angle about
     // the light's axis through its centre, which keeps the light's bounding
@@ -606,9 +609,14 @@ void main() {
                 vec2 sphere = caster_sphere(o, uintBitsToFloat(fetched.t0.xyz), uintBitsToFloat(fetched.t1.xyz),
                                             uintBitsToFloat(fetched.t2.xyz));
                 // The pairs whose rectangle meets some texel of the
-                // subgroup's samples: the others every lane culls.
+                // subgroup's samples and that are within its reach: the
+                // others every lane culls (those beyond reach counted as
+                // each lane's culls).
                 uint meeting = subgroupBallot(pair_meets(fetched.ids, sg_tmin, sg_tmax)).x
                     & first_bits(min(group, window - j0));
+                uint far = subgroupBallot(beyond_reach(sphere, sg_reach, REACH_MARGIN)).x & meeting;
+                meeting &= ~far;
+                beyond_tests += full ? 0u : uint(bitCount(far));
                 while (meeting != 0u) {
                     uint jj = uint(findLSB(meeting));
                     meeting &= meeting - 1u;

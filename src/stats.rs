@@ -139,7 +139,8 @@ pub struct SoftStats {
     /// (View sample, triangle) visits that the reach rule culled before the
     /// test (not counted as tests): every point of the caster farther from
     /// the light's centre than the sample and the light's radius, so that
-    /// no segment from the sample to the light meets it
+    /// no segment from the sample to the light meets it; a caster beyond
+    /// the reach of a whole subgroup's samples counts once per sample
     /// (`COUNTER_BEYOND_REACH`).
     #[serde(default)]
     pub beyond_reach_pairs: u32,
