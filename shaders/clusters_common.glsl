@@ -212,12 +212,69 @@ uint cull_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
 #define REACH_MARGIN 1e-5
 #define REACH_MARGIN_BOX 1e-4
 
-// The bound's two lengths: |o - g| and max |v - g|.
-vec2 caster_sphere(vec3 o, vec3 a, vec3 b, vec3 c) {
+// A ball holding the caster: its vertices' mean g (xyz) and max |v - g| (w).
+vec4 caster_ball(vec3 a, vec3 b, vec3 c) {
     vec3 g = (a + b + c) * (1.0 / 3.0);
     vec3 da = a - g, db = b - g, dc = c - g;
     float rho2 = max(max(dot(da, da), dot(db, db)), dot(dc, dc));
-    return vec2(length(o - g), sqrt(rho2));
+    return vec4(g, sqrt(rho2));
+}
+
+// The bound's two lengths: |o - g| and max |v - g|.
+vec2 caster_sphere(vec3 o, vec3 a, vec3 b, vec3 c) {
+    vec4 ball = caster_ball(a, b, c);
+    return vec2(length(o - ball.xyz), ball.w);
+}
+
+// The hull rule (soft shadows): every segment from a view sample in ball
+// (c, rc) to a light sample lies in the convex hull of that ball and the
+// light's (o, r), a round cone; a caster whose ball (caster_ball) lies
+// outside it hides nothing from those samples. The distance to the round
+// cone (after Quilez) is computed in coordinates scaled by the cone's
+// length, from differences of the f32 points (each rounded relative to
+// itself), so its rounding is a few ulps of the lengths involved; the
+// rule asks for a relative margin of them (HULL_MARGIN per sample, with
+// rc = 0; HULL_MARGIN_BOX for a subgroup's ball, far above the per-sample
+// margin and both roundings, so a pair dropped for the subgroup is one
+// that each of its samples culls: the hull of a sample's point lies in
+// the hull of the ball holding it). No rule where one ball nearly holds
+// the other (the cone's side is then ill-conditioned) or where anything
+// is not finite. Twin: cpu::clusters::outside_hull.
+#define HULL_MARGIN 1e-5
+#define HULL_MARGIN_BOX 1e-4
+
+// Signed distance from p to the hull of balls (a, r1) and (b, r2), in
+// units of L = |b - a| + r1 + r2; NaN where the rule does not apply.
+float hull_distance(vec3 p, vec3 a, float r1, vec3 b, float r2) {
+    float len = length(b - a);
+    float s = 1.0 / (len + r1 + r2);
+    vec3 ba = (b - a) * s, pa = (p - a) * s;
+    r1 *= s;
+    r2 *= s;
+    float l2 = dot(ba, ba), rr = r1 - r2, a2 = l2 - rr * rr, il2 = 1.0 / l2;
+    float y = dot(pa, ba), z = y - l2;
+    vec3 xv = pa * l2 - ba * y;
+    float x2 = dot(xv, xv), y2 = y * y * l2, z2 = z * z * l2;
+    float k = sign(rr) * rr * rr * x2;
+    float d = sign(z) * a2 * z2 > k ? sqrt(x2 + z2) * il2 - r2
+        : (sign(y) * a2 * y2 < k ? sqrt(x2 + y2) * il2 - r1 : (sqrt(x2 * a2 * il2) + y * rr) * il2 - r1);
+    // A cone's side steeper than about 87 degrees: no rule.
+    return a2 > 1e-2 * l2 ? d : uintBitsToFloat(0x7fc00000u);
+}
+
+// Whether the caster's ball `ball` lies outside the hull of ball (c, rc)
+// and the light's by `margin` of the lengths (false for NaN).
+bool outside_hull(vec4 ball, vec3 c, float rc, float margin) {
+    vec3 o = pc.origin.xyz;
+    float r = pc.soft_light.x;
+    float len = length(o - c);
+    float scale = len + r + rc;
+    float d = hull_distance(ball.xyz, c, rc, o, r) * scale;
+    // Samples near the light's sphere: no rule (the cone's side is then
+    // steep); a ball's guard is wider than a point's, so that where a
+    // ball's rule applies, the rule of every point in it does.
+    bool clear = len - rc > (rc > 0.0 ? 1.02 : 1.01) * r;
+    return clear && d > ball.w + margin * (scale + length(ball.xyz - c) + ball.w);
 }
 
 // Whether the caster of caster_sphere `s` lies beyond `reach` (the largest

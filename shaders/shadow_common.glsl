@@ -95,7 +95,10 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 32u;
 // chunk's box dropped (of COUNTER_CLUSTER_CHUNK's).
 #define COUNTER_BEYOND_REACH 23
 #define COUNTER_CLUSTER_BEYOND_REACH 24
-#define COUNTER_COUNT 25
+// Soft occlusion, the hull rule (clusters_common.glsl): (view sample,
+// pair) visits culled before the test, or left out for a whole subgroup.
+#define COUNTER_OUTSIDE_HULL 25
+#define COUNTER_COUNT 26
 
 // Frame-wide parameters (push constants).
 struct LightPush {

@@ -543,6 +543,13 @@ void main() {
     // The subgroup's largest: a pair beyond it is one every lane culls
     // (beyond_reach grows with the reach), left out of the loop.
     float sg_reach = subgroupMax(un.has_sample ? reach_x : 0.0);
+    // The hull rule's ball of the subgroup's samples (any centre: its
+    // radius is measured from it), and x as seen (the pairs' frame, before
+    // any turn below).
+    vec3 sg_c = 0.5 * (subgroupMin(un.has_sample ? x : vec3(1.0 / 0.0)) + subgroupMax(un.has_sample ? x : vec3(-1.0 / 0.0)));
+    float sg_rho = subgroupMax(un.has_sample ? length(x - sg_c) : 0.0);
+    vec3 x_seen = x;
+    uint hull_tests = 0u;
     uint begin = 0u, end = kept;
     // Per-pixel rotation: x and each caster turned back by x's angle about
     // the light's axis through its centre, which keeps the light's bounding
@@ -606,8 +613,9 @@ void main() {
                 PairTexels fetched = fetch_pair(kept_pairs[w0 + k]);
                 // Per pair, the reach rule's caster bound (each lane takes
                 // pair jj's by a shuffle).
-                vec2 sphere = caster_sphere(o, uintBitsToFloat(fetched.t0.xyz), uintBitsToFloat(fetched.t1.xyz),
-                                            uintBitsToFloat(fetched.t2.xyz));
+                vec4 ball = caster_ball(uintBitsToFloat(fetched.t0.xyz), uintBitsToFloat(fetched.t1.xyz),
+                                        uintBitsToFloat(fetched.t2.xyz));
+                vec2 sphere = vec2(length(o - ball.xyz), ball.w);
                 // The pairs whose rectangle meets some texel of the
                 // subgroup's samples and that are within its reach: the
                 // others every lane culls (those beyond reach counted as
@@ -617,6 +625,11 @@ void main() {
                 uint far = subgroupBallot(beyond_reach(sphere, sg_reach, REACH_MARGIN)).x & meeting;
                 meeting &= ~far;
                 beyond_tests += full ? 0u : uint(bitCount(far));
+                // The hull rule for the subgroup's ball (counted as each
+                // lane's culls).
+                uint outside = subgroupBallot(outside_hull(ball, sg_c, sg_rho, HULL_MARGIN_BOX)).x & meeting;
+                meeting &= ~outside;
+                hull_tests += full ? 0u : uint(bitCount(outside));
                 while (meeting != 0u) {
                     uint jj = uint(findLSB(meeting));
                     meeting &= meeting - 1u;
@@ -627,9 +640,13 @@ void main() {
                     // The reach rule: culled, not a test.
                     bool beyond = rule != PAIR_CULLED
                         && beyond_reach(subgroupShuffle(sphere, jj), reach_x, REACH_MARGIN);
-                    rule = beyond ? PAIR_CULLED : rule;
+                    // The hull rule for x itself.
+                    bool outside_x = rule != PAIR_CULLED && !beyond
+                        && outside_hull(subgroupShuffle(ball, jj), x_seen, 0.0, HULL_MARGIN);
+                    rule = beyond || outside_x ? PAIR_CULLED : rule;
                     if (!full) {
                         beyond_tests += beyond ? 1u : 0u;
+                        hull_tests += outside_x ? 1u : 0u;
                         // Tests in the low half, plane rejections in the high
                         // half (at most MAX_KEPT of each per invocation): one add.
                         tests += rule == PAIR_CULLED ? 0u : (rule == PAIR_PLANE_REJECTED ? 0x10001u : 1u);
@@ -823,6 +840,10 @@ void main() {
     }
     if (subgroupElect() && sum_beyond != 0u) {
         atomicAdd(counters[COUNTER_BEYOND_REACH], sum_beyond);
+    }
+    uint sum_hull = subgroupAdd(hull_tests);
+    if (subgroupElect() && sum_hull != 0u) {
+        atomicAdd(counters[COUNTER_OUTSIDE_HULL], sum_hull);
     }
 #if EXACT_MASKS
     uint sum_wedge = subgroupAdd(wedge_rejected);

@@ -144,6 +144,14 @@ pub struct SoftStats {
     /// (`COUNTER_BEYOND_REACH`).
     #[serde(default)]
     pub beyond_reach_pairs: u32,
+    /// (View sample, triangle) visits that the hull rule culled before the
+    /// test (not counted as tests): a ball holding the caster lies outside
+    /// the convex hull of the sample and the light's bounding sphere, which
+    /// holds every segment between them; a caster outside the hull of a
+    /// whole subgroup's samples counts once per sample
+    /// (`COUNTER_OUTSIDE_HULL`).
+    #[serde(default)]
+    pub outside_hull_pairs: u32,
     /// Whether this run built the plane look-up texture (it is built once
     /// per light shape and reused: its time, `ms.lut_build`, appears only
     /// in the frame that built it).
@@ -246,6 +254,7 @@ impl ShadowStats {
                 past_sphere_tests: c[counter::PAST_SPHERE],
                 sample_unit_visits: c[counter::SAMPLE_VISITS],
                 beyond_reach_pairs: c[counter::BEYOND_REACH],
+                outside_hull_pairs: c[counter::OUTSIDE_HULL],
                 lut_built: out.soft.as_ref().is_some_and(|s| s.lut_built),
                 unsure_bits: unsure,
                 unsure_share: unsure as f64

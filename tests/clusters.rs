@@ -2,7 +2,8 @@
 //! occlusion, and soft occlusion's wedge rule skips pairs before their
 //! look-ups or per-light-sample tests; neither may ever change a result.
 //! The reach rule (a caster farther from the light's centre than a chunk's
-//! samples and the light) drops pairs per chunk too.
+//! samples and the light) drops pairs per chunk too, and the reach and
+//! hull rules per subgroup.
 //! Every case runs with the clusters on and off (and soft ones in exact and
 //! look-up modes with the wedge rule off) and the runs must agree bit for
 //! bit: hard shadows' lit flags, and soft shadows' masks in every mode. The cases aim at the
@@ -68,6 +69,8 @@ fn clusters_change_no_result() {
         (0u64, 0u64, 0u64, 0u64, 0);
     // The reach rule's (pair, chunk) drops and (sample, pair) culls.
     let (mut chunk_beyond, mut beyond) = (0u64, 0u64);
+    // The hull rule's (sample, pair) culls.
+    let mut hull = 0u64;
     for spec in [
         "builtin:demo",
         "builtin:plane_sphere",
@@ -199,6 +202,7 @@ fn clusters_change_no_result() {
                 // The reach rule per (sample, pair) runs with the clusters
                 // off too (it is occlusion's own early out).
                 beyond += with.stats.soft.as_ref().unwrap().beyond_reach_pairs as u64;
+                hull += with.stats.soft.as_ref().unwrap().outside_hull_pairs as u64;
                 light_side += a;
                 behind_closed += b;
                 penumbra += p;
@@ -207,7 +211,7 @@ fn clusters_change_no_result() {
         }
     }
     eprintln!(
-        "{cases} cases; bins dropped: {light_side} light side, {behind_closed} behind closed; chunk visits dropped: {chunk} ({penumbra} outside penumbra, {chunk_beyond} beyond reach); (sample, pair) visits beyond reach: {beyond}"
+        "{cases} cases; bins dropped: {light_side} light side, {behind_closed} behind closed; chunk visits dropped: {chunk} ({penumbra} outside penumbra, {chunk_beyond} beyond reach); (sample, pair) visits beyond reach: {beyond}, outside the hull: {hull}"
     );
     assert!(
         light_side > 0
@@ -215,7 +219,8 @@ fn clusters_change_no_result() {
             && penumbra > 0
             && chunk > 0
             && chunk_beyond > 0
-            && beyond > 0,
+            && beyond > 0
+            && hull > 0,
         "every rule exercised"
     );
     eprintln!(

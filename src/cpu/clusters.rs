@@ -162,14 +162,86 @@ pub const REACH_MARGIN: f32 = 1e-5;
 /// dropped for a box is one that every sample in it culls.
 pub const REACH_MARGIN_BOX: f32 = 1e-4;
 
-/// The reach rule's lower bound on the distance from `o` to triangle
-/// `v` (`caster_sphere`): `(|o - g|, max |v_i - g|)`, `g` the vertices'
-/// mean; the distance is at least the first less the second, for any `g`.
-pub fn caster_sphere(o: Vec3, [a, b, c]: [Vec3; 3]) -> (f32, f32) {
+/// A ball holding triangle `v` (`caster_ball`): its vertices' mean and
+/// the largest distance of a vertex from it.
+pub fn caster_ball([a, b, c]: [Vec3; 3]) -> (Vec3, f32) {
     let g = (a + b + c) * (1.0 / 3.0);
     let (da, db, dc) = (a - g, b - g, c - g);
     let rho2 = da.dot(da).max(db.dot(db)).max(dc.dot(dc));
-    ((o - g).length(), rho2.sqrt())
+    (g, rho2.sqrt())
+}
+
+/// The reach rule's lower bound on the distance from `o` to triangle
+/// `v` (`caster_sphere`): `(|o - g|, max |v_i - g|)` for [`caster_ball`]'s
+/// `g`; the distance is at least the first less the second, for any `g`.
+pub fn caster_sphere(o: Vec3, v: [Vec3; 3]) -> (f32, f32) {
+    let (g, rho) = caster_ball(v);
+    ((o - g).length(), rho)
+}
+
+/// The hull rule's margin per (view sample, caster) (`HULL_MARGIN`).
+pub const HULL_MARGIN: f32 = 1e-5;
+/// The hull rule's margin per (subgroup's ball, caster)
+/// (`HULL_MARGIN_BOX`).
+pub const HULL_MARGIN_BOX: f32 = 1e-4;
+
+/// `hull_distance` in clusters_common.glsl: the signed distance from `p`
+/// to the convex hull of balls (a, r1) and (b, r2) (a round cone, after
+/// Quilez), in units of `|b - a| + r1 + r2`; NaN where one ball nearly
+/// holds the other (no rule).
+pub fn hull_distance(p: Vec3, a: Vec3, r1: f32, b: Vec3, r2: f32) -> f32 {
+    let len = (b - a).length();
+    let s = 1.0 / (len + r1 + r2);
+    let (ba, pa) = ((b - a) * s, (p - a) * s);
+    let (r1, r2) = (r1 * s, r2 * s);
+    let l2 = ba.dot(ba);
+    let rr = r1 - r2;
+    let a2 = l2 - rr * rr;
+    let il2 = 1.0 / l2;
+    let y = pa.dot(ba);
+    let z = y - l2;
+    let xv = pa * l2 - ba * y;
+    let x2 = xv.dot(xv);
+    let (y2, z2) = (y * y * l2, z * z * l2);
+    let sign = |v: f32| {
+        if v > 0.0 {
+            1.0
+        } else if v < 0.0 {
+            -1.0
+        } else {
+            0.0
+        }
+    };
+    let k = sign(rr) * rr * rr * x2;
+    let d = if sign(z) * a2 * z2 > k {
+        (x2 + z2).sqrt() * il2 - r2
+    } else if sign(y) * a2 * y2 < k {
+        (x2 + y2).sqrt() * il2 - r1
+    } else {
+        ((x2 * a2 * il2).sqrt() + y * rr) * il2 - r1
+    };
+    if a2 > 1e-2 * l2 {
+        d
+    } else {
+        f32::NAN
+    }
+}
+
+/// The hull rule (`outside_hull`): whether the caster's ball `(g, rho)`
+/// ([`caster_ball`]) lies outside the convex hull of ball `(c, rc)` (view
+/// samples) and the light's bounding sphere `(o, r)` by `margin` of the
+/// lengths involved, and the samples clear of the light's sphere (1.01 of
+/// its radius for a point, 1.02 for a ball). Every segment from such a
+/// sample to a light sample lies in that hull (it is convex), so then the
+/// caster hides nothing.
+pub fn outside_hull((g, rho): (Vec3, f32), c: Vec3, rc: f32, o: Vec3, r: f32, margin: f32) -> bool {
+    let len = (o - c).length();
+    let scale = len + r + rc;
+    let d = hull_distance(g, c, rc, o, r) * scale;
+    // Samples near the light's sphere: no rule; a ball's guard is wider
+    // than a point's, so that the rule of every point in it applies too.
+    let clear = len - rc > if rc > 0.0 { 1.02 } else { 1.01 } * r;
+    clear && d > rho + margin * (scale + (g - c).length() + rho)
 }
 
 /// The reach rule (`beyond_reach`): whether a caster whose
@@ -514,6 +586,155 @@ mod tests {
         } else {
             d.min(edges)
         }
+    }
+
+    /// Whether the segment from `x` to `l` meets triangle `v` (f64,
+    /// Möller–Trumbore, edges included).
+    fn segment_meets(x: glam::DVec3, l: glam::DVec3, [a, b, c]: [glam::DVec3; 3]) -> bool {
+        let d = l - x;
+        let (e1, e2) = (b - a, c - a);
+        let p = d.cross(e2);
+        let det = e1.dot(p);
+        if det.abs() < 1e-300 {
+            return false;
+        }
+        let t = x - a;
+        let u = t.dot(p) / det;
+        let q = t.cross(e1);
+        let v = d.dot(q) / det;
+        let s = e2.dot(q) / det;
+        u >= -1e-9 && v >= -1e-9 && u + v <= 1.0 + 1e-9 && (-1e-9..=1.0 + 1e-9).contains(&s)
+    }
+
+    #[test]
+    fn the_hull_rule_drops_only_casters_outside_the_samples_and_the_light() {
+        // Random lights, balls of samples and casters (small, large,
+        // slivers) placed around the segment between them, near the camera
+        // and 1e5 away: wherever the rule culls a (sample, caster), the f64
+        // distance (the same formula) passes the caster's ball and no
+        // segment from the sample to the light's sphere tried meets the
+        // caster; wherever it drops one for a ball of samples, every point
+        // tried in the ball culls it. It must cull some and keep some just
+        // outside the hull, or this proves nothing.
+        struct Xorshift(u64);
+        impl Xorshift {
+            fn f(&mut self) -> f64 {
+                self.0 ^= self.0 << 13;
+                self.0 ^= self.0 >> 7;
+                self.0 ^= self.0 << 17;
+                (self.0 >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+            }
+            fn v(&mut self) -> glam::DVec3 {
+                glam::DVec3::new(self.f(), self.f(), self.f())
+            }
+            fn dir(&mut self) -> glam::DVec3 {
+                self.v().normalize_or(glam::DVec3::X)
+            }
+        }
+        let mut g = Xorshift(0x1234_5678_9abc_def1);
+        let (mut culled, mut dropped, mut kept, mut tried) = (0u32, 0u32, 0u32, 0u32);
+        for case in 0..6000 {
+            let offset = if case % 2 == 0 {
+                glam::DVec3::ZERO
+            } else {
+                g.v() * 1e5
+            };
+            let o32 = (offset + g.v()).as_vec3();
+            let r32 = (0.01 + g.f().abs()) as f32;
+            let c32 = (o32.as_dvec3() + g.dir() * (0.5 + 5.0 * g.f().abs())).as_vec3();
+            let rc32 = (0.3 * g.f().abs()) as f32;
+            let (o, r, c, rc) = (o32.as_dvec3(), r32 as f64, c32.as_dvec3(), rc32 as f64);
+            // A caster around a point between the ball and the light, off
+            // the axis by up to twice the larger radius.
+            let t = g.f().abs();
+            let off = g.dir() * (2.0 * r.max(rc) * g.f().abs());
+            let at = c + (o - c) * t + off;
+            let size = match case % 3 {
+                0 => 1e-3,
+                1 => 0.05,
+                _ => 0.5,
+            } * (o - c).length();
+            let mut tri = [at + g.v() * size, at + g.v() * size, at + g.v() * size];
+            if case % 7 == 0 {
+                tri[2] = tri[0] + (tri[1] - tri[0]) * 0.5 + g.v() * size * 1e-6;
+            }
+            let tri32 = tri.map(|v| v.as_vec3());
+            let trid = tri32.map(|v| v.as_dvec3());
+            let ball = caster_ball(tri32);
+            tried += 1;
+            let ball_drops = outside_hull(ball, c32, rc32, o32, r32, HULL_MARGIN_BOX);
+            dropped += ball_drops as u32;
+            for k in 0..12 {
+                // Points of the samples' ball: its centre and just inside its surface.
+                let x = if k == 0 {
+                    c32
+                } else {
+                    (c + g.dir() * rc * (1.0 - 1e-6)).as_vec3()
+                };
+                let xd = x.as_dvec3();
+                let culls = outside_hull(ball, x, 0.0, o32, r32, HULL_MARGIN);
+                assert!(
+                    !ball_drops || culls || (xd - c).length() > rc,
+                    "case {case}: {tri32:?} dropped for the ball ({c32}, {rc32}) but not culled for {x}"
+                );
+                if !culls {
+                    kept += 1;
+                    continue;
+                }
+                culled += 1;
+                let (gd, rho) = (ball.0.as_dvec3(), ball.1 as f64);
+                let scale = (o - xd).length() + r;
+                let d = {
+                    // The formula in f64.
+                    let s = 1.0 / scale;
+                    let (ba, pa) = ((o - xd) * s, (gd - xd) * s);
+                    let (r1, r2) = (0.0, r * s);
+                    let l2 = ba.dot(ba);
+                    let rr: f64 = r1 - r2;
+                    let a2 = l2 - rr * rr;
+                    let y = pa.dot(ba);
+                    let z = y - l2;
+                    let xv = pa * l2 - ba * y;
+                    let x2 = xv.dot(xv);
+                    let k = rr.signum() * rr * rr * x2;
+                    let v = if z.signum() * a2 * z * z * l2 > k {
+                        (x2 + z * z * l2).sqrt() / l2 - r2
+                    } else if y.signum() * a2 * y * y * l2 < k {
+                        (x2 + y * y * l2).sqrt() / l2 - r1
+                    } else {
+                        ((x2 * a2 / l2).sqrt() + y * rr) / l2 - r1
+                    };
+                    v * scale
+                };
+                assert!(
+                    d > rho,
+                    "case {case}: {tri32:?} culled for {x}: f64 distance {d}, ball {rho}"
+                );
+                for _ in 0..40 {
+                    let l = o + g.dir() * r * g.f().abs().cbrt();
+                    assert!(
+                        !segment_meets(xd, l, trid),
+                        "case {case}: {tri32:?} culled for {x} meets the segment to {l}"
+                    );
+                }
+                // The light's points nearest each vertex's direction from x.
+                for v in trid {
+                    let q = xd + (v - xd).normalize_or(glam::DVec3::X) * (o - xd).length();
+                    let l = o + (q - o).normalize_or(glam::DVec3::Y) * r * (1.0 - 1e-9);
+                    assert!(
+                        !segment_meets(xd, l, trid),
+                        "case {case}: {tri32:?} culled for {x} meets the segment to {l}"
+                    );
+                }
+            }
+        }
+        eprintln!(
+            "hull rule: culled {culled}, kept {kept}, dropped for a ball {dropped} of {tried}"
+        );
+        assert!(
+            culled > 10000 && kept > 10000 && dropped > 500,
+            "culled {culled}, kept {kept}, dropped {dropped} of {tried}"
+        );
     }
 
     #[test]

@@ -4,7 +4,9 @@
 
 use glam::Vec3;
 
-use super::clusters::{beyond_reach, caster_sphere, REACH_MARGIN};
+use super::clusters::{
+    beyond_reach, caster_ball, caster_sphere, outside_hull, HULL_MARGIN, REACH_MARGIN,
+};
 use super::plane_lut::{blocks, lut_index, BlockBits};
 
 /// How the bits of a plane are found.
@@ -28,8 +30,9 @@ pub enum PlaneBits<'a> {
 /// hides from view sample x, all camera-relative, for a light bounded by
 /// (origin, radius); `closed` triangles block only light samples behind
 /// their oriented plane. `None` when the pair is not tested (x on the
-/// plane, behind a closed triangle, or the triangle beyond the reach of x
-/// and the light: [`beyond_reach`]). The same arithmetic as
+/// plane, behind a closed triangle, the triangle beyond the reach of x
+/// and the light, [`beyond_reach`], or outside their hull,
+/// [`outside_hull`]). The same arithmetic as
 /// `soft_occlusion.comp`, sphere rejection included. An alpha-tested
 /// triangle blocks a light sample `l` only where `opaque(l)` (its alpha
 /// test where the segment from x to l crosses it: [`crate::cpu::alpha`]);
@@ -57,6 +60,10 @@ pub fn blocked_bits(
     // x and the light reach; not a test.
     let reach = (x - origin).length().max(radius);
     if beyond_reach(caster_sphere(origin, [a, b, c]), reach, REACH_MARGIN) {
+        return None;
+    }
+    // The hull rule: the caster's ball outside the hull of x and the light.
+    if outside_hull(caster_ball([a, b, c]), x, 0.0, origin, radius, HULL_MARGIN) {
         return None;
     }
     let exact = matches!(bits, PlaneBits::Exact { .. });

@@ -225,9 +225,12 @@ pub mod counter {
     /// Soft occlusion: of [`CLUSTER_CHUNK`]'s visits, those that the reach
     /// rule dropped for the chunk's box.
     pub const CLUSTER_BEYOND_REACH: usize = 24;
+    /// Soft occlusion: (view sample, pair) visits that the hull rule
+    /// culled before the test (`clusters_common.glsl`: `outside_hull`).
+    pub const OUTSIDE_HULL: usize = 25;
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.
-    pub const COUNT: usize = 25;
+    pub const COUNT: usize = 26;
 
     /// The (low, high) slot pairs that hold 64-bit sums (the high word
     /// right after the low one: `count_wide` in soft_occlusion.comp).
@@ -407,6 +410,7 @@ pub(crate) mod tests {
             ("SAMPLE_VISITS", counter::SAMPLE_VISITS),
             ("BEYOND_REACH", counter::BEYOND_REACH),
             ("CLUSTER_BEYOND_REACH", counter::CLUSTER_BEYOND_REACH),
+            ("OUTSIDE_HULL", counter::OUTSIDE_HULL),
             ("COUNT", counter::COUNT),
         ] {
             assert_eq!(
