@@ -588,6 +588,24 @@ mod tests {
         }
     }
 
+    /// The tests' random numbers (xorshift64): uniform in [-1, 1), vectors
+    /// of three, and unit directions.
+    struct Xorshift(u64);
+    impl Xorshift {
+        fn f(&mut self) -> f64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        }
+        fn v(&mut self) -> glam::DVec3 {
+            glam::DVec3::new(self.f(), self.f(), self.f())
+        }
+        fn dir(&mut self) -> glam::DVec3 {
+            self.v().normalize_or(glam::DVec3::X)
+        }
+    }
+
     /// Whether the segment from `x` to `l` meets triangle `v` (f64,
     /// Möller–Trumbore, edges included).
     fn segment_meets(x: glam::DVec3, l: glam::DVec3, [a, b, c]: [glam::DVec3; 3]) -> bool {
@@ -616,21 +634,6 @@ mod tests {
         // caster; wherever it drops one for a ball of samples, every point
         // tried in the ball culls it. It must cull some and keep some just
         // outside the hull, or this proves nothing.
-        struct Xorshift(u64);
-        impl Xorshift {
-            fn f(&mut self) -> f64 {
-                self.0 ^= self.0 << 13;
-                self.0 ^= self.0 >> 7;
-                self.0 ^= self.0 << 17;
-                (self.0 >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-            }
-            fn v(&mut self) -> glam::DVec3 {
-                glam::DVec3::new(self.f(), self.f(), self.f())
-            }
-            fn dir(&mut self) -> glam::DVec3 {
-                self.v().normalize_or(glam::DVec3::X)
-            }
-        }
         let mut g = Xorshift(0x1234_5678_9abc_def1);
         let (mut culled, mut dropped, mut kept, mut tried) = (0u32, 0u32, 0u32, 0u32);
         for case in 0..6000 {
@@ -747,18 +750,6 @@ mod tests {
         // (so no segment between them meets it); wherever it drops a
         // (box, caster), it culls every point tried in the box. And it must
         // cull and drop some, and keep some just inside, or this proves nothing.
-        struct Xorshift(u64);
-        impl Xorshift {
-            fn f(&mut self) -> f64 {
-                self.0 ^= self.0 << 13;
-                self.0 ^= self.0 >> 7;
-                self.0 ^= self.0 << 17;
-                (self.0 >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-            }
-            fn v(&mut self) -> glam::DVec3 {
-                glam::DVec3::new(self.f(), self.f(), self.f())
-            }
-        }
         let mut g = Xorshift(0x9e3779b97f4a7c15);
         let (mut culled, mut kept_near, mut dropped, mut tried) = (0, 0, 0, 0);
         for case in 0..20000 {
