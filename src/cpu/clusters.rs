@@ -89,6 +89,9 @@ pub enum ClusterRule {
     /// every sample of the box and the light's radius ([`beyond_reach`];
     /// soft shadows, [`chunk_rule`] only).
     BeyondReach,
+    /// The caster's ball outside the hull of a ball holding the box and the
+    /// light's sphere ([`outside_hull`]; soft shadows, [`chunk_rule`] only).
+    OutsideHull,
 }
 
 /// A caster's supporting plane as the rules see it (`ClusterPlane`).
@@ -282,9 +285,10 @@ pub fn cull_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option<
 }
 
 /// Soft occlusion's rule for a chunk of samples (`chunk_rule`):
-/// [`cull_rule`], the box outside the caster's penumbra volume, or the
+/// [`cull_rule`], the box outside the caster's penumbra volume, the
 /// caster beyond the box's reach ([`beyond_reach`] with
-/// [`REACH_MARGIN_BOX`]).
+/// [`REACH_MARGIN_BOX`]), or outside the hull of the box's ball and the
+/// light ([`outside_hull`] with [`HULL_MARGIN_BOX`]).
 pub fn chunk_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option<ClusterRule> {
     let rule = cull_rule(p, b, light);
     let ClusterLight::Sphere(o, r_light) = *light else {
@@ -301,8 +305,14 @@ pub fn chunk_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option
         return Some(ClusterRule::OutsidePenumbra);
     }
     let reach = box_reach(b, o, r_light);
-    beyond_reach(caster_sphere(o, [p.a, p.b, p.c]), reach, REACH_MARGIN_BOX)
-        .then_some(ClusterRule::BeyondReach)
+    let ball = caster_ball([p.a, p.b, p.c]);
+    if beyond_reach(((o - ball.0).length(), ball.1), reach, REACH_MARGIN_BOX) {
+        return Some(ClusterRule::BeyondReach);
+    }
+    // A ball holding the box: its radius measured from the rounded centre,
+    // and rounded up.
+    let rb = (b.hi - c).abs().max((b.lo - c).abs()).length() * (1.0 + 1e-6);
+    outside_hull(ball, c, rb, o, r_light, HULL_MARGIN_BOX).then_some(ClusterRule::OutsideHull)
 }
 
 /// The bounds of `dot(g, x - p)` over the box (centre `bc`, half extent `bh`).
@@ -636,6 +646,7 @@ mod tests {
         // outside the hull, or this proves nothing.
         let mut g = Xorshift(0x1234_5678_9abc_def1);
         let (mut culled, mut dropped, mut kept, mut tried) = (0u32, 0u32, 0u32, 0u32);
+        let mut box_dropped = 0u32;
         for case in 0..6000 {
             let offset = if case % 2 == 0 {
                 glam::DVec3::ZERO
@@ -667,6 +678,30 @@ mod tests {
             tried += 1;
             let ball_drops = outside_hull(ball, c32, rc32, o32, r32, HULL_MARGIN_BOX);
             dropped += ball_drops as u32;
+            // A chunk's box inside the samples' ball: where chunk_rule
+            // drops the caster by the hull, every corner culls it.
+            let half = rc32 * 0.5;
+            let b = TileBox {
+                lo: c32 - Vec3::splat(half),
+                hi: c32 + Vec3::splat(half),
+            };
+            let light = ClusterLight::Sphere(o32, r32);
+            if chunk_rule(&cluster_plane(tri32, false, &light), &b, &light)
+                == Some(ClusterRule::OutsideHull)
+            {
+                box_dropped += 1;
+                for k in 0..8 {
+                    let x = Vec3::new(
+                        if k & 1 == 0 { b.lo.x } else { b.hi.x },
+                        if k & 2 == 0 { b.lo.y } else { b.hi.y },
+                        if k & 4 == 0 { b.lo.z } else { b.hi.z },
+                    );
+                    assert!(
+                        outside_hull(ball, x, 0.0, o32, r32, HULL_MARGIN),
+                        "case {case}: {tri32:?} dropped for the box {b:?} but not culled for {x}"
+                    );
+                }
+            }
             for k in 0..12 {
                 // Points of the samples' ball: its centre and just inside its surface.
                 let x = if k == 0 {
@@ -732,10 +767,10 @@ mod tests {
             }
         }
         eprintln!(
-            "hull rule: culled {culled}, kept {kept}, dropped for a ball {dropped} of {tried}"
+            "hull rule: culled {culled}, kept {kept}, dropped for a ball {dropped} and for a box {box_dropped} of {tried}"
         );
         assert!(
-            culled > 10000 && kept > 10000 && dropped > 500,
+            culled > 10000 && kept > 10000 && dropped > 500 && box_dropped > 100,
             "culled {culled}, kept {kept}, dropped {dropped} of {tried}"
         );
     }

@@ -117,11 +117,14 @@ pub fn bin_pairs(
             match rule {
                 Some(ClusterRule::LightSide) => bins.dropped_light_side += 1,
                 Some(ClusterRule::BehindClosed) => bins.dropped_behind_closed += 1,
-                // (cull_rule has no penumbra or reach rule: soft
+                // (cull_rule has no penumbra, reach or hull rule: soft
                 // occlusion's chunks apply them.)
-                Some(ClusterRule::OutsidePenumbra | ClusterRule::BeyondReach) | None => {
-                    bins.tiles[tile].push(i as u32)
-                }
+                Some(
+                    ClusterRule::OutsidePenumbra
+                    | ClusterRule::BeyondReach
+                    | ClusterRule::OutsideHull,
+                )
+                | None => bins.tiles[tile].push(i as u32),
             }
         }
     }
