@@ -221,9 +221,9 @@ vec4 caster_ball(vec3 a, vec3 b, vec3 c) {
     return vec4(g, sqrt(rho2));
 }
 
-// The bound's two lengths: |o - g| and max |v - g|.
-vec2 caster_sphere(vec3 o, vec3 a, vec3 b, vec3 c) {
-    vec4 ball = caster_ball(a, b, c);
+// The bound's two lengths for a caster's ball (caster_ball): |o - g| and
+// max |v - g|.
+vec2 caster_sphere(vec3 o, vec4 ball) {
     return vec2(length(o - ball.xyz), ball.w);
 }
 
@@ -235,19 +235,19 @@ vec2 caster_sphere(vec3 o, vec3 a, vec3 b, vec3 c) {
 // length, from differences of the f32 points (each rounded relative to
 // itself), so its rounding is a few ulps of the lengths involved; the
 // rule asks for a relative margin of them (HULL_MARGIN per sample, with
-// rc = 0; HULL_MARGIN_BOX for a subgroup's ball, far above the per-sample
-// margin and both roundings, so a pair dropped for the subgroup is one
-// that each of its samples culls: the hull of a sample's point lies in
-// the hull of the ball holding it). No rule where one ball nearly holds
+// rc = 0; HULL_MARGIN_BOX for a subgroup's or a chunk's ball, far above
+// the per-sample margin and both roundings, so a pair dropped for the ball
+// is one that each of its samples culls: the hull of a sample's point
+// lies in the hull of the ball holding it). No rule where one ball nearly holds
 // the other (the cone's side is then ill-conditioned) or where anything
 // is not finite. Twin: cpu::clusters::outside_hull.
 #define HULL_MARGIN 1e-5
 #define HULL_MARGIN_BOX 1e-4
 
 // Signed distance from p to the hull of balls (a, r1) and (b, r2), in
-// units of L = |b - a| + r1 + r2; NaN where the rule does not apply.
-float hull_distance(vec3 p, vec3 a, float r1, vec3 b, float r2) {
-    float len = length(b - a);
+// units of L = len + r1 + r2 (len = |b - a|); NaN where the rule does not
+// apply.
+float hull_distance(vec3 p, vec3 a, float r1, vec3 b, float r2, float len) {
     float s = 1.0 / (len + r1 + r2);
     vec3 ba = (b - a) * s, pa = (p - a) * s;
     r1 *= s;
@@ -270,7 +270,7 @@ bool outside_hull(vec4 ball, vec3 c, float rc, float margin) {
     float r = pc.soft_light.x;
     float len = length(o - c);
     float scale = len + r + rc;
-    float d = hull_distance(ball.xyz, c, rc, o, r) * scale;
+    float d = hull_distance(ball.xyz, c, rc, o, r, len) * scale;
     // Samples near the light's sphere: no rule (the cone's side is then
     // steep); a ball's guard is wider than a point's, so that where a
     // ball's rule applies, the rule of every point in it does.
@@ -305,7 +305,7 @@ uint chunk_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
     vec3 o = pc.origin.xyz;
     float reach = max(length(max(abs(lo - o), abs(hi - o))), pc.soft_light.x);
     vec4 ball = caster_ball(cp.a, cp.b, cp.c);
-    if (beyond_reach(vec2(length(o - ball.xyz), ball.w), reach, REACH_MARGIN_BOX)) {
+    if (beyond_reach(caster_sphere(o, ball), reach, REACH_MARGIN_BOX)) {
         return CLUSTER_BEYOND_REACH;
     }
     // The hull rule for a ball holding the box (its radius measured from

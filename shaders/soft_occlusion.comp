@@ -615,7 +615,7 @@ void main() {
                 // pair jj's by a shuffle).
                 vec4 ball = caster_ball(uintBitsToFloat(fetched.t0.xyz), uintBitsToFloat(fetched.t1.xyz),
                                         uintBitsToFloat(fetched.t2.xyz));
-                vec2 sphere = vec2(length(o - ball.xyz), ball.w);
+                vec2 sphere = caster_sphere(o, ball);
                 // The pairs whose rectangle meets some texel of the
                 // subgroup's samples and that are within its reach: the
                 // others every lane culls (those beyond reach counted as

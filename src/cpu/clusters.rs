@@ -174,11 +174,10 @@ pub fn caster_ball([a, b, c]: [Vec3; 3]) -> (Vec3, f32) {
     (g, rho2.sqrt())
 }
 
-/// The reach rule's lower bound on the distance from `o` to triangle
-/// `v` (`caster_sphere`): `(|o - g|, max |v_i - g|)` for [`caster_ball`]'s
-/// `g`; the distance is at least the first less the second, for any `g`.
-pub fn caster_sphere(o: Vec3, v: [Vec3; 3]) -> (f32, f32) {
-    let (g, rho) = caster_ball(v);
+/// The reach rule's lower bound on the distance from `o` to a triangle
+/// whose [`caster_ball`] is `(g, rho)` (`caster_sphere`): `(|o - g|, rho)`;
+/// the distance is at least the first less the second, for any `g`.
+pub fn caster_sphere(o: Vec3, (g, rho): (Vec3, f32)) -> (f32, f32) {
     ((o - g).length(), rho)
 }
 
@@ -190,10 +189,9 @@ pub const HULL_MARGIN_BOX: f32 = 1e-4;
 
 /// `hull_distance` in clusters_common.glsl: the signed distance from `p`
 /// to the convex hull of balls (a, r1) and (b, r2) (a round cone, after
-/// Quilez), in units of `|b - a| + r1 + r2`; NaN where one ball nearly
-/// holds the other (no rule).
-pub fn hull_distance(p: Vec3, a: Vec3, r1: f32, b: Vec3, r2: f32) -> f32 {
-    let len = (b - a).length();
+/// Quilez), in units of `len + r1 + r2` (`len` = `|b - a|`); NaN where
+/// one ball nearly holds the other (no rule).
+pub fn hull_distance(p: Vec3, a: Vec3, r1: f32, b: Vec3, r2: f32, len: f32) -> f32 {
     let s = 1.0 / (len + r1 + r2);
     let (ba, pa) = ((b - a) * s, (p - a) * s);
     let (r1, r2) = (r1 * s, r2 * s);
@@ -240,7 +238,7 @@ pub fn hull_distance(p: Vec3, a: Vec3, r1: f32, b: Vec3, r2: f32) -> f32 {
 pub fn outside_hull((g, rho): (Vec3, f32), c: Vec3, rc: f32, o: Vec3, r: f32, margin: f32) -> bool {
     let len = (o - c).length();
     let scale = len + r + rc;
-    let d = hull_distance(g, c, rc, o, r) * scale;
+    let d = hull_distance(g, c, rc, o, r, len) * scale;
     // Samples near the light's sphere: no rule; a ball's guard is wider
     // than a point's, so that the rule of every point in it applies too.
     let clear = len - rc > if rc > 0.0 { 1.02 } else { 1.01 } * r;
@@ -306,7 +304,7 @@ pub fn chunk_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option
     }
     let reach = box_reach(b, o, r_light);
     let ball = caster_ball([p.a, p.b, p.c]);
-    if beyond_reach(((o - ball.0).length(), ball.1), reach, REACH_MARGIN_BOX) {
+    if beyond_reach(caster_sphere(o, ball), reach, REACH_MARGIN_BOX) {
         return Some(ClusterRule::BeyondReach);
     }
     // A ball holding the box: its radius measured from the rounded centre,
@@ -828,7 +826,7 @@ mod tests {
                 tri[2] = tri[0] + (tri[1] - tri[0]) * 0.5 + g.v() * size * 1e-6;
             }
             let tri32 = tri.map(|t| t.as_vec3());
-            let sphere = caster_sphere(o32, tri32);
+            let sphere = caster_sphere(o32, caster_ball(tri32));
             let distance = triangle_distance(o, tri32.map(|t| t.as_dvec3()));
             tried += 1;
             let box_drops = beyond_reach(sphere, box_reach(&b, o32, r32), REACH_MARGIN_BOX);

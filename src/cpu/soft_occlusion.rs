@@ -59,11 +59,12 @@ pub fn blocked_bits(
     // The reach rule: the caster lies farther from the light's centre than
     // x and the light reach; not a test.
     let reach = (x - origin).length().max(radius);
-    if beyond_reach(caster_sphere(origin, [a, b, c]), reach, REACH_MARGIN) {
+    let ball = caster_ball([a, b, c]);
+    if beyond_reach(caster_sphere(origin, ball), reach, REACH_MARGIN) {
         return None;
     }
     // The hull rule: the caster's ball outside the hull of x and the light.
-    if outside_hull(caster_ball([a, b, c]), x, 0.0, origin, radius, HULL_MARGIN) {
+    if outside_hull(ball, x, 0.0, origin, radius, HULL_MARGIN) {
         return None;
     }
     let exact = matches!(bits, PlaneBits::Exact { .. });
