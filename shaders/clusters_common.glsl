@@ -285,22 +285,12 @@ bool beyond_reach(vec2 s, float reach, float margin) {
     return s.x - s.y > reach + margin * (s.x + s.y + reach);
 }
 
-// Soft occlusion's rule for a chunk of samples (kept_pairs): cull_rule,
-// the box outside the caster's penumbra volume (outside_penumbra), the
+// The rules that need no plane, for the box [lo, hi] (soft shadows): the
 // caster beyond the box's reach (beyond_reach), or outside the hull of a
-// ball holding the box and the light (outside_hull).
-// Tile binning leaves the penumbra rule out: per tile it cost more than
-// it saved (torus_knot:100000: binning 0.6 -> 1.6 s, occlusion unchanged),
-// the chunks' own boxes drop the same pairs.
-uint chunk_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
-    uint rule = cull_rule(cp, lo, hi);
-    if (rule != CLUSTER_KEEP || !is_soft()) {
-        return rule;
-    }
-    vec3 c = 0.5 * (lo + hi), h = 0.5 * (hi - lo);
-    if (cp.n != vec3(0.0) && outside_penumbra(cp, c, h, cluster_margin(cp, lo, hi))) {
-        return CLUSTER_OUTSIDE_PENUMBRA;
-    }
+// ball holding the box and the light (outside_hull). Twin:
+// cpu::clusters::far_rule.
+uint far_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
+    vec3 c = 0.5 * (lo + hi);
     // The reach rule: the box's farthest corner from the light's centre.
     vec3 o = pc.origin.xyz;
     float reach = max(length(max(abs(lo - o), abs(hi - o))), pc.soft_light.x);
@@ -312,6 +302,31 @@ uint chunk_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
     // the rounded centre, and rounded up).
     float rb = length(max(abs(hi - c), abs(lo - c))) * (1.0 + 1e-6);
     return outside_hull(ball, c, rb, HULL_MARGIN_BOX) ? CLUSTER_OUTSIDE_HULL : CLUSTER_KEEP;
+}
+
+// Tile binning's rule for a tile's box: cull_rule, and for soft shadows
+// far_rule. Tile binning leaves the penumbra rule out: per tile it cost
+// more than it saved (torus_knot:100000: binning 0.6 -> 1.6 s, occlusion
+// unchanged), the chunks' own boxes drop the same pairs. Twin:
+// cpu::clusters::bin_rule.
+uint bin_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
+    uint rule = cull_rule(cp, lo, hi);
+    return rule != CLUSTER_KEEP || !is_soft() ? rule : far_rule(cp, lo, hi);
+}
+
+// Soft occlusion's rule for a chunk of samples (kept_pairs): cull_rule,
+// the box outside the caster's penumbra volume (outside_penumbra), then
+// far_rule. Twin: cpu::clusters::chunk_rule.
+uint chunk_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
+    uint rule = cull_rule(cp, lo, hi);
+    if (rule != CLUSTER_KEEP || !is_soft()) {
+        return rule;
+    }
+    vec3 c = 0.5 * (lo + hi), h = 0.5 * (hi - lo);
+    if (cp.n != vec3(0.0) && outside_penumbra(cp, c, h, cluster_margin(cp, lo, hi))) {
+        return CLUSTER_OUTSIDE_PENUMBRA;
+    }
+    return far_rule(cp, lo, hi);
 }
 
 

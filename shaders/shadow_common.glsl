@@ -98,7 +98,12 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 32u;
 // Soft occlusion, the hull rule (clusters_common.glsl): (view sample,
 // pair) visits culled before the test, or left out for a whole subgroup.
 #define COUNTER_OUTSIDE_HULL 25
-#define COUNTER_COUNT 26
+// Tile binning, soft shadows: (pair, tile) bins that the tile's box
+// dropped by the reach rule and by the hull rule (clusters_common.glsl:
+// bin_rule).
+#define COUNTER_BIN_BEYOND_REACH 26
+#define COUNTER_BIN_OUTSIDE_HULL 27
+#define COUNTER_COUNT 28
 
 // Frame-wide parameters (push constants).
 struct LightPush {

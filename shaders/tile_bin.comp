@@ -3,7 +3,7 @@
 // TILE x TILE light texels: every tile the pair's projection may touch.
 // SCATTER = 0 counts pairs per tile; SCATTER = 1 writes them at the
 // scanned offsets. A tile's view-sample box drops the casters that cannot
-// block any of its samples (clusters_common.glsl). Twin:
+// block any of its samples (clusters_common.glsl: bin_rule). Twin:
 // cpu::tile_bin::bin_pairs.
 #extension GL_GOOGLE_include_directive : require
 #include "clusters_common.glsl"
@@ -43,7 +43,7 @@ void main() {
     if (CLUSTERS != 0u) {
         plane = triangle_cluster_plane(triangles_tb, cf.ids.x);
     }
-    uint light_side = 0u, behind_closed = 0u;
+    uint light_side = 0u, behind_closed = 0u, far = 0u, outside = 0u;
     for (uint ty = t0.y; ty <= t1.y; ty++) {
         for (uint w = t0.x / 32u; w <= t1.x / 32u; w++) {
             // This word's occupied tiles inside the rectangle's columns.
@@ -66,9 +66,11 @@ void main() {
                 vec4 box_lo = CLUSTERS != 0u ? uintBitsToFloat(texelFetch(boxes_tb, int(2u * tile))) : vec4(0.0);
                 if (CLUSTERS != 0u && box_lo.w != 0.0) {
                     vec3 box_hi = uintBitsToFloat(texelFetch(boxes_tb, int(2u * tile + 1u)).xyz);
-                    uint rule = cull_rule(plane, box_lo.xyz, box_hi);
+                    uint rule = bin_rule(plane, box_lo.xyz, box_hi);
                     light_side += rule == CLUSTER_LIGHT_SIDE ? 1u : 0u;
                     behind_closed += rule == CLUSTER_BEHIND_CLOSED ? 1u : 0u;
+                    far += rule == CLUSTER_BEYOND_REACH ? 1u : 0u;
+                    outside += rule == CLUSTER_OUTSIDE_HULL ? 1u : 0u;
                     if (rule != CLUSTER_KEEP) {
                         continue;
                     }
@@ -91,5 +93,11 @@ void main() {
     }
     if (SCATTER == 0u && behind_closed != 0u) {
         atomicAdd(counters[COUNTER_CLUSTER_BEHIND_CLOSED], behind_closed);
+    }
+    if (SCATTER == 0u && far != 0u) {
+        atomicAdd(counters[COUNTER_BIN_BEYOND_REACH], far);
+    }
+    if (SCATTER == 0u && outside != 0u) {
+        atomicAdd(counters[COUNTER_BIN_OUTSIDE_HULL], outside);
     }
 }

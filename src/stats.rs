@@ -61,6 +61,15 @@ pub struct ShadowStats {
     pub bins_dropped_light_side: u32,
     /// The same, every sample behind a closed caster (soft shadows).
     pub bins_dropped_behind_closed: u32,
+    /// The same, the caster beyond the reach of every sample of the tile
+    /// (soft shadows; `COUNTER_BIN_BEYOND_REACH`).
+    #[serde(default)]
+    pub bins_dropped_beyond_reach: u32,
+    /// The same, the caster's ball outside the hull of a ball holding the
+    /// tile's samples and the light's sphere (soft shadows;
+    /// `COUNTER_BIN_OUTSIDE_HULL`).
+    #[serde(default)]
+    pub bins_dropped_outside_hull: u32,
     /// Soft occlusion: (pair, chunk of 64 samples) visits that the chunk's
     /// own box (the same rules) or texels ruled out before the loop.
     pub chunk_pairs_dropped: u32,
@@ -231,6 +240,8 @@ impl ShadowStats {
             view_sample_triangle_tests: c[counter::TESTS],
             bins_dropped_light_side: c[counter::CLUSTER_LIGHT_SIDE],
             bins_dropped_behind_closed: c[counter::CLUSTER_BEHIND_CLOSED],
+            bins_dropped_beyond_reach: c[counter::BIN_BEYOND_REACH],
+            bins_dropped_outside_hull: c[counter::BIN_OUTSIDE_HULL],
             chunk_pairs_dropped: c[counter::CLUSTER_CHUNK],
             chunk_pairs_outside_penumbra: c[counter::CLUSTER_OUTSIDE_PENUMBRA],
             chunk_pairs_beyond_reach: c[counter::CLUSTER_BEYOND_REACH],

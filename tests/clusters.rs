@@ -18,7 +18,7 @@ use alias_free_shadows::bench::{bench_light, load_scene};
 use alias_free_shadows::light::{Light, LightShape};
 use alias_free_shadows::oracle::Oracle;
 use alias_free_shadows::render::Engine;
-use alias_free_shadows::scene::file::{SceneDescription, ShadowSettings, SoftMode};
+use alias_free_shadows::scene::file::{LightTexels, SceneDescription, ShadowSettings, SoftMode};
 use alias_free_shadows::vulkan::ContextOptions;
 use glam::DVec3;
 
@@ -71,15 +71,20 @@ fn clusters_change_no_result() {
     let (mut chunk_beyond, mut beyond) = (0u64, 0u64);
     // The hull rule's (sample, pair) culls.
     let mut hull = 0u64;
-    for spec in [
-        "builtin:demo",
-        "builtin:plane_sphere",
-        "builtin:stairs",
-        "builtin:hairball",
-        "builtin:fence",
-        "builtin:torus_knot:3000",
+    // Tile binning's (pair, tile) drops by the reach and hull rules.
+    let (mut bin_beyond, mut bin_hull) = (0u64, 0u64);
+    // (plane_sphere at 64² has chunks whose reach drops a caster that
+    // their tile's does not.)
+    for (spec, size) in [
+        ("builtin:demo", SIZE),
+        ("builtin:plane_sphere", SIZE),
+        ("builtin:plane_sphere", 2 * SIZE),
+        ("builtin:stairs", SIZE),
+        ("builtin:hairball", SIZE),
+        ("builtin:fence", SIZE),
+        ("builtin:torus_knot:3000", SIZE),
     ] {
-        let desc = load_scene(spec, SIZE).unwrap();
+        let desc = load_scene(spec, size).unwrap();
         let eye = desc.camera.eye;
         let oracle = Oracle::new(&desc.scene.triangles(), eye);
         let view = engine_view_samples(&oracle, &desc);
@@ -120,20 +125,40 @@ fn clusters_change_no_result() {
                 if light.samples > 128 && mode != SoftMode::Lut {
                     continue;
                 }
-                let run_with = |engine: &mut Engine, clusters, wedge_rule| {
+                let run_texels = |engine: &mut Engine, clusters, wedge_rule, soft_light_texels| {
                     let settings = ShadowSettings {
                         mode,
                         clusters,
                         wedge_rule,
+                        soft_light_texels,
                         ..Default::default()
                     };
                     engine
                         .soft_shadows(&desc.scene, eye, &view.samples, &light, &settings)
                         .unwrap()
                 };
+                let run_with = |engine: &mut Engine, clusters, wedge_rule| {
+                    run_texels(engine, clusters, wedge_rule, LightTexels::Auto)
+                };
                 let run = |engine: &mut Engine, clusters| run_with(engine, clusters, true);
                 let with = run(&mut engine, true);
                 let without = run(&mut engine, false);
+                // One tile per face (8 texels a side): its chunks of 64
+                // samples are smaller than its box, so the chunks' own
+                // rules drop what the tile's leave (at this size a tile of
+                // the automatic map holds about one chunk).
+                if mode == SoftMode::Lut {
+                    let coarse = |engine: &mut Engine, clusters| {
+                        run_texels(engine, clusters, true, LightTexels::Fixed(8))
+                    };
+                    let (with, without) = (coarse(&mut engine, true), coarse(&mut engine, false));
+                    assert_eq!(
+                        with.visible, without.visible,
+                        "{spec}, {name}, {mode:?}, one tile per face: masks differ"
+                    );
+                    chunk_beyond += with.stats.chunk_pairs_beyond_reach as u64;
+                    chunk += with.stats.chunk_pairs_dropped as u64;
+                }
                 // The wedge rule (exact mode and look-up mode).
                 if mode != SoftMode::Approx {
                     let no_wedge = run_with(&mut engine, true, false);
@@ -160,9 +185,11 @@ fn clusters_change_no_result() {
                         without.stats.bins_dropped_behind_closed,
                         without.stats.chunk_pairs_outside_penumbra,
                         without.stats.chunk_pairs_dropped,
-                        without.stats.chunk_pairs_beyond_reach
+                        without.stats.chunk_pairs_beyond_reach,
+                        without.stats.bins_dropped_beyond_reach,
+                        without.stats.bins_dropped_outside_hull,
                     ),
-                    (0, 0, 0, 0, 0),
+                    (0, 0, 0, 0, 0, 0, 0),
                     "off drops nothing"
                 );
                 let (a, b, p) = (
@@ -199,6 +226,8 @@ fn clusters_change_no_result() {
                 }
                 chunk += with.stats.chunk_pairs_dropped as u64;
                 chunk_beyond += with.stats.chunk_pairs_beyond_reach as u64;
+                bin_beyond += with.stats.bins_dropped_beyond_reach as u64;
+                bin_hull += with.stats.bins_dropped_outside_hull as u64;
                 // The reach rule per (sample, pair) runs with the clusters
                 // off too (it is occlusion's own early out).
                 beyond += with.stats.soft.as_ref().unwrap().beyond_reach_pairs as u64;
@@ -211,7 +240,7 @@ fn clusters_change_no_result() {
         }
     }
     eprintln!(
-        "{cases} cases; bins dropped: {light_side} light side, {behind_closed} behind closed; chunk visits dropped: {chunk} ({penumbra} outside penumbra, {chunk_beyond} beyond reach); (sample, pair) visits beyond reach: {beyond}, outside the hull: {hull}"
+        "{cases} cases; bins dropped: {light_side} light side, {behind_closed} behind closed, {bin_beyond} beyond reach, {bin_hull} outside the hull; chunk visits dropped: {chunk} ({penumbra} outside penumbra, {chunk_beyond} beyond reach); (sample, pair) visits beyond reach: {beyond}, outside the hull: {hull}"
     );
     assert!(
         light_side > 0
@@ -219,6 +248,8 @@ fn clusters_change_no_result() {
             && penumbra > 0
             && chunk > 0
             && chunk_beyond > 0
+            && bin_beyond > 0
+            && bin_hull > 0
             && beyond > 0
             && hull > 0,
         "every rule exercised"

@@ -235,20 +235,33 @@ fn check_bins(
     }
     assert_eq!(binned, total);
     assert_eq!(
-        (
+        [
             c[counter::CLUSTER_LIGHT_SIDE],
-            c[counter::CLUSTER_BEHIND_CLOSED]
-        ),
-        (bins.dropped_light_side, bins.dropped_behind_closed),
-        "bins dropped per rule"
+            c[counter::CLUSTER_BEHIND_CLOSED],
+            c[counter::BIN_BEYOND_REACH],
+            c[counter::BIN_OUTSIDE_HULL],
+        ],
+        [
+            bins.dropped_light_side,
+            bins.dropped_behind_closed,
+            bins.dropped_beyond_reach,
+            bins.dropped_outside_hull,
+        ],
+        "bins dropped per rule (light side, behind closed, beyond reach, outside hull)"
     );
+    let dropped = bins.dropped_light_side
+        + bins.dropped_behind_closed
+        + bins.dropped_beyond_reach
+        + bins.dropped_outside_hull;
     eprintln!(
-        "{}: {} boxes, dropped {} (light side) + {} (behind closed) of {} bins",
+        "{}: {} boxes, dropped {} (light side) + {} (behind closed) + {} (beyond reach) + {} (outside hull) of {} bins",
         inp.desc.name,
         boxes.iter().flatten().count(),
         bins.dropped_light_side,
         bins.dropped_behind_closed,
-        total as u32 + bins.dropped_light_side + bins.dropped_behind_closed
+        bins.dropped_beyond_reach,
+        bins.dropped_outside_hull,
+        total as u32 + dropped
     );
     (pair_count, total)
 }

@@ -87,10 +87,10 @@ pub enum ClusterRule {
     OutsidePenumbra,
     /// Every point of the caster farther from the light's centre than
     /// every sample of the box and the light's radius ([`beyond_reach`];
-    /// soft shadows, [`chunk_rule`] only).
+    /// soft shadows, [`far_rule`]).
     BeyondReach,
     /// The caster's ball outside the hull of a ball holding the box and the
-    /// light's sphere ([`outside_hull`]; soft shadows, [`chunk_rule`] only).
+    /// light's sphere ([`outside_hull`]; soft shadows, [`far_rule`]).
     OutsideHull,
 }
 
@@ -282,11 +282,20 @@ pub fn cull_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option<
     (soft && p.closed && dc + r <= -m).then_some(ClusterRule::BehindClosed)
 }
 
+/// Tile binning's rule for a tile's box (`bin_rule`): [`cull_rule`], and
+/// for soft shadows [`far_rule`]. (The penumbra rule is left to the
+/// chunks: per tile it cost more than it saved.)
+pub fn bin_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option<ClusterRule> {
+    let rule = cull_rule(p, b, light);
+    match *light {
+        ClusterLight::Sphere(o, r_light) if rule.is_none() => far_rule(p, b, o, r_light),
+        _ => rule,
+    }
+}
+
 /// Soft occlusion's rule for a chunk of samples (`chunk_rule`):
-/// [`cull_rule`], the box outside the caster's penumbra volume, the
-/// caster beyond the box's reach ([`beyond_reach`] with
-/// [`REACH_MARGIN_BOX`]), or outside the hull of the box's ball and the
-/// light ([`outside_hull`] with [`HULL_MARGIN_BOX`]).
+/// [`cull_rule`], the box outside the caster's penumbra volume, then
+/// [`far_rule`].
 pub fn chunk_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option<ClusterRule> {
     let rule = cull_rule(p, b, light);
     let ClusterLight::Sphere(o, r_light) = *light else {
@@ -302,6 +311,16 @@ pub fn chunk_rule(p: &ClusterPlane, b: &TileBox, light: &ClusterLight) -> Option
     if p.n != Vec3::ZERO && outside_penumbra(p, c, h, o, r_light, m) {
         return Some(ClusterRule::OutsidePenumbra);
     }
+    far_rule(p, b, o, r_light)
+}
+
+/// The rules that need no plane (`far_rule`), for the box `b` and a light
+/// of radius `r_light` centred at `o`: the caster beyond the box's reach
+/// ([`beyond_reach`] with [`REACH_MARGIN_BOX`]), or outside the hull of
+/// the box's ball and the light ([`outside_hull`] with
+/// [`HULL_MARGIN_BOX`]).
+pub fn far_rule(p: &ClusterPlane, b: &TileBox, o: Vec3, r_light: f32) -> Option<ClusterRule> {
+    let c = 0.5 * (b.lo + b.hi);
     let reach = box_reach(b, o, r_light);
     let ball = caster_ball([p.a, p.b, p.c]);
     if beyond_reach(caster_sphere(o, ball), reach, REACH_MARGIN_BOX) {

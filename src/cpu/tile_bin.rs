@@ -2,14 +2,14 @@
 //! paper §3.2): every (caster, face) pair goes into the list of each tile
 //! of [`TILE`]² light texels that its texel rectangle and edge functions
 //! may touch, unless the tile holds no view sample or the tile's
-//! view-sample box drops the caster ([`crate::cpu::clusters`]).
+//! view-sample box drops the caster ([`crate::cpu::clusters::bin_rule`]).
 //!
 //! The GPU appends pairs to a tile's list in atomic order, so its lists
 //! equal the twin's as sets. [`crate::cpu::occlusion`] visits the touched
 //! texels directly, without tiles: a reference for the binning too.
 
 use super::casters::{square_overlaps, CasterFace};
-use super::clusters::{cluster_plane, cull_rule, ClusterLight, ClusterRule, TileBox};
+use super::clusters::{bin_rule, cluster_plane, ClusterLight, ClusterRule, TileBox};
 use crate::gpu::shared::GpuCasterFace;
 
 /// Texels per side of a rasterization tile (`TILE` in `shadow_common.glsl`).
@@ -85,6 +85,12 @@ pub struct Bins {
     /// (Pair, tile) bins dropped because every sample of the tile's box is
     /// behind a closed caster (soft shadows).
     pub dropped_behind_closed: u32,
+    /// (Pair, tile) bins dropped because the caster lies beyond the reach
+    /// of every sample of the tile's box (soft shadows).
+    pub dropped_beyond_reach: u32,
+    /// (Pair, tile) bins dropped because the caster's ball lies outside the
+    /// hull of the box's ball and the light's sphere (soft shadows).
+    pub dropped_outside_hull: u32,
 }
 
 /// Bins every pair into the tiles it touches; `occupied[tile]`: whether the
@@ -111,20 +117,17 @@ pub fn bin_pairs(
                 continue;
             }
             let rule = match (clusters, &plane) {
-                (Some(c), Some(p)) => c.boxes[tile].and_then(|b| cull_rule(p, &b, &c.light)),
+                (Some(c), Some(p)) => c.boxes[tile].and_then(|b| bin_rule(p, &b, &c.light)),
                 _ => None,
             };
             match rule {
                 Some(ClusterRule::LightSide) => bins.dropped_light_side += 1,
                 Some(ClusterRule::BehindClosed) => bins.dropped_behind_closed += 1,
-                // (cull_rule has no penumbra, reach or hull rule: soft
-                // occlusion's chunks apply them.)
-                Some(
-                    ClusterRule::OutsidePenumbra
-                    | ClusterRule::BeyondReach
-                    | ClusterRule::OutsideHull,
-                )
-                | None => bins.tiles[tile].push(i as u32),
+                Some(ClusterRule::BeyondReach) => bins.dropped_beyond_reach += 1,
+                Some(ClusterRule::OutsideHull) => bins.dropped_outside_hull += 1,
+                // (bin_rule has no penumbra rule: soft occlusion's chunks
+                // apply it.)
+                Some(ClusterRule::OutsidePenumbra) | None => bins.tiles[tile].push(i as u32),
             }
         }
     }

@@ -2,9 +2,11 @@
 //! of light texels, the box of its listed view samples
 //! (`clusters_bounds.comp`). Tile binning tests each caster against the
 //! boxes of the tiles it covers and drops it where it cannot block any of
-//! their samples (`clusters_common.glsl`: every sample on the light's side
-//! of its plane, or behind a closed caster), so that occlusion never visits
-//! the pair. Soft occlusion applies the same rules again to the box of each
+//! their samples (`clusters_common.glsl`, `bin_rule`: every sample on the
+//! light's side of its plane, or behind a closed caster; for soft shadows
+//! also the caster beyond the reach of every sample, or outside the hull of
+//! the box's ball and the light), so that occlusion never visits the pair.
+//! Soft occlusion applies those rules and the penumbra rule to the box of each
 //! workgroup's 64 samples (and their texels to each pair's rectangle) and
 //! compacts the unit's pairs before its loop (`soft_occlusion.comp`,
 //! `keep_pairs`): on lavapipe every lane runs every iteration, so only a

@@ -228,9 +228,15 @@ pub mod counter {
     /// Soft occlusion: (view sample, pair) visits that the hull rule
     /// culled before the test (`clusters_common.glsl`: `outside_hull`).
     pub const OUTSIDE_HULL: usize = 25;
+    /// Tile binning: (pair, tile) bins dropped because the caster lies
+    /// beyond the reach of every sample of the tile's box (soft).
+    pub const BIN_BEYOND_REACH: usize = 26;
+    /// Tile binning: (pair, tile) bins dropped because the caster's ball
+    /// lies outside the hull of the tile box's ball and the light (soft).
+    pub const BIN_OUTSIDE_HULL: usize = 27;
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.
-    pub const COUNT: usize = 26;
+    pub const COUNT: usize = 28;
 
     /// The (low, high) slot pairs that hold 64-bit sums (the high word
     /// right after the low one: `count_wide` in soft_occlusion.comp).
@@ -411,6 +417,8 @@ pub(crate) mod tests {
             ("BEYOND_REACH", counter::BEYOND_REACH),
             ("CLUSTER_BEYOND_REACH", counter::CLUSTER_BEYOND_REACH),
             ("OUTSIDE_HULL", counter::OUTSIDE_HULL),
+            ("BIN_BEYOND_REACH", counter::BIN_BEYOND_REACH),
+            ("BIN_OUTSIDE_HULL", counter::BIN_OUTSIDE_HULL),
             ("COUNT", counter::COUNT),
         ] {
             assert_eq!(
