@@ -142,6 +142,7 @@ void main() {
                 cp.edge1 = uintBitsToFloat(texelFetch(planes_tb, int(pl + 2u)));
                 cp.edge2 = uintBitsToFloat(texelFetch(planes_tb, int(pl + 3u)));
                 cp.side = uintBitsToFloat(texelFetch(planes_tb, int(pl + 4u)));
+                uint caster_hits = 0u;
                 for (uint s = list_begin; s < list_end; s++) {
                     uvec4 qb = texelFetch(list_samples_tb, int(s));
                     vec4 qs = vec4(uintBitsToFloat(qb.xyz), 0.0);
@@ -156,18 +157,31 @@ void main() {
                         && inside_edge(cp.edge0, cp.side.x, q)
                         && inside_edge(cp.edge1, cp.side.y, q)
                         && inside_edge(cp.edge2, cp.side.z, q);
-                    if (ALPHA != 0u && hit) {
-                        // Where the segment to the light crosses the caster.
-                        uint ti = 3u * caster;
-                        vec3 a = uintBitsToFloat(texelFetch(triangles_tb, int(ti)).xyz);
-                        vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(ti + 1u)).xyz);
-                        uvec4 c = texelFetch(triangles_tb, int(ti + 2u));
-                        vec3 d = is_point_light() ? pc.origin.xyz - qs.xyz : -pc.direction.xyz;
-                        vec2 bc = segment_barycentrics(qs.xyz, d, a, b, uintBitsToFloat(c.xyz));
-                        hit = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, c.w, bc);
-                    }
-                    hits |= hit ? 1u << (s - list_begin) : 0u;
+                    caster_hits |= hit ? 1u << (s - list_begin) : 0u;
                 }
+                if (ALPHA != 0u) {
+                    // The opacity where the segment to the light crosses the
+                    // caster, only for the samples it hides that no earlier
+                    // caster did, in a loop of their own (lavapipe runs an
+                    // `if` for every lane: its texture look-ups cost more
+                    // than the tests). At most OCC_SAMPLE_CHUNK iterations
+                    // per pair.
+                    uint ti = 3u * caster;
+                    vec3 a = uintBitsToFloat(texelFetch(triangles_tb, int(ti)).xyz);
+                    vec3 b = uintBitsToFloat(texelFetch(triangles_tb, int(ti + 1u)).xyz);
+                    uvec4 c = texelFetch(triangles_tb, int(ti + 2u));
+                    uint left = caster_hits & ~hits;
+                    caster_hits = 0u;
+                    while (left != 0u) {
+                        uint bit = uint(findLSB(left));
+                        left &= left - 1u;
+                        vec3 qs = uintBitsToFloat(texelFetch(list_samples_tb, int(list_begin + bit)).xyz);
+                        vec3 d = is_point_light() ? pc.origin.xyz - qs : -pc.direction.xyz;
+                        vec2 bc = segment_barycentrics(qs, d, a, b, uintBitsToFloat(c.xyz));
+                        caster_hits |= alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, c.w, bc) ? 1u << bit : 0u;
+                    }
+                }
+                hits |= caster_hits;
             }
         }
     }

@@ -18,7 +18,9 @@
 // is bounded: occlusion.comp runs at most OCC_PAIR_CHUNK * (OCC_SAMPLE_CHUNK
 // + 2) + OCC_PAIR_CHUNK / PAIR_WINDOW + OCC_SAMPLE_CHUNK iterations (a
 // loop over each window's pairs, then the list for each pair that touches
-// the texel; last, the shadowed entries' writes).
+// the texel, and in the alpha round the opacity of the entries it hides;
+// last, the shadowed entries' writes), OCC_SAMPLE_CHUNK more per pair in
+// the alpha round.
 // Specialization constants: the soft exact mode loops over 128 light
 // samples per test, so its chunks are smaller.
 layout(constant_id = 2) const uint OCC_PAIR_CHUNK = 64u;

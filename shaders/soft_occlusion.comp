@@ -219,6 +219,17 @@ void count_wide(uint lo, uint value) {
     }
 }
 
+// Exact mode's alpha round: sample K of a light-sample group (`first`
+// its first, n_block the block's samples), tested without a loop.
+#define GROUP_SAMPLE(K)                                                      \
+    {                                                                        \
+        uint jl = first + uint(K);                                           \
+        vec3 l = texelFetch(light_samples_tb, int(base + min(jl, n_block - 1u))).xyz; \
+        bool blocked = jl < n_block && exact_blocks(l, p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se); \
+        group_bits |= blocked ? 1u << (jl & 31u) : 0u;                      \
+    }
+#define FOR_GROUP_SAMPLES(M) M(0) M(1) M(2) M(3) M(4) M(5) M(6) M(7) M(8) M(9) M(10) M(11) M(12) M(13) M(14) M(15)
+
 uint bit_count(uvec4 v) {
     return uint(bitCount(v.x) + bitCount(v.y) + bitCount(v.z) + bitCount(v.w));
 }
@@ -752,7 +763,8 @@ void main() {
                 // masks are those of testing every sample (the twin does).
                 // Loop iterations per pair: at most 3 + 8 + 8 + 128 (the
                 // first loop, the wedge rule's and the second; groups,
-                // candidate groups, their samples), so a unit of
+                // candidate groups, their samples or, in the alpha round,
+                // the opacity of those the caster hides), so a unit of
                 // SOFT_PAIR_CHUNK = 256 pairs stays within lavapipe's 65535
                 // per invocation (shadow_common.glsl) at about 38 K.
                 uint base = first_block * 128u;
@@ -785,14 +797,32 @@ void main() {
                     candidates &= candidates - 1u;
                     uint first = g * LIGHT_GROUP_SIZE;
                     uint group_bits = 0u;
-                    for (uint jl = first; jl < min(first + LIGHT_GROUP_SIZE, n_block); jl++) {
-                        vec3 l = texelFetch(light_samples_tb, int(base + jl)).xyz;
-                        bool blocked = exact_blocks(l, p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
-                        if (ALPHA != 0u && blocked) {
+                    if (ALPHA != 0u) {
+                        // The group's samples unrolled (no loop iterations),
+                        // then the opacity at the crossing only for those
+                        // the triangle blocks, in a loop over them: lavapipe
+                        // runs an `if` for every lane, and the opacity's
+                        // texture look-ups for every sample cost TransmissionTest's
+                        // exact frames 29 s. The loops stay within the bound
+                        // of SOFT_PAIR_CHUNK's (16 iterations per group).
+                        FOR_GROUP_SAMPLES(GROUP_SAMPLE)
+                        uint left = group_bits;
+                        group_bits = 0u;
+                        uint word_first = base + (first & ~31u);
+                        while (left != 0u) {
+                            uint bit = uint(findLSB(left));
+                            left &= left - 1u;
+                            vec3 l = texelFetch(light_samples_tb, int(word_first + bit)).xyz;
                             vec2 bc = segment_barycentrics(x, l - x, p.a, p.b, p.c);
-                            blocked = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, p.alpha_record, bc);
+                            bool opaque = alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, p.alpha_record, bc);
+                            group_bits |= opaque ? 1u << bit : 0u;
                         }
-                        group_bits |= blocked ? 1u << (jl & 31u) : 0u;
+                    } else {
+                        for (uint jl = first; jl < min(first + LIGHT_GROUP_SIZE, n_block); jl++) {
+                            vec3 l = texelFetch(light_samples_tb, int(base + jl)).xyz;
+                            bool blocked = exact_blocks(l, p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
+                            group_bits |= blocked ? 1u << (jl & 31u) : 0u;
+                        }
                     }
                     bits |= in_word(first >> 5u, group_bits);
                 }
