@@ -315,7 +315,15 @@ uvec4 past_end(uint block) {
         if (a.w != 0u) atomicOr(masks[w + 3u], a.w);                         \
     }
 
-#define INIT_BLOCK(K) uvec4 init##K = past_end(first_block + uint(K));
+// The alpha round starts from what the opaque round blocked (its masks,
+// complete before this dispatch): those samples need no opacity look-up,
+// and a sample they block wholly is done from the start.
+uvec4 earlier_bits(bool has_sample, uint s, uint words, uint block) {
+    uint w = (has_sample ? s : 0u) * words + block * 4u;
+    return ALPHA != 0u && has_sample ? uvec4(masks[w], masks[w + 1u], masks[w + 2u], masks[w + 3u]) : uvec4(0u);
+}
+#define INIT_BLOCK(K) uvec4 init##K = past_end(first_block + uint(K)) | earlier_bits(un.has_sample, s, words, first_block + uint(K));
+#define AND_INIT(K) all_init &= init##K;
 #define ACC_BLOCK(K) uvec4 acc##K = init##K;
 #define AND_BLOCK(K) all_blocks &= acc##K;
 
@@ -600,7 +608,9 @@ void main() {
         // than keep a window of them per lane.
         // Lanes without a sample take part in the first loop's fetches
         // (below) and count nothing.
-        bool full = !un.has_sample;
+        uvec4 all_init = uvec4(0xffffffffu);
+        FOR_BLOCKS(AND_INIT)
+        bool full = !un.has_sample || all(equal(all_init, uvec4(0xffffffffu)));
 #if EXACT_MASKS && WEDGE_WORTH != 0
         // The wedge rule's loop iterations so far, and the second loop's
         // iterations it saved (the busiest lane's, per window).
@@ -806,7 +816,11 @@ void main() {
                         // exact frames 29 s. The loops stay within the bound
                         // of SOFT_PAIR_CHUNK's (16 iterations per group).
                         FOR_GROUP_SAMPLES(GROUP_SAMPLE)
-                        uint left = group_bits;
+                        // Samples blocked already (an earlier caster, or the
+                        // opaque round) need no look-up.
+                        uint wd = first >> 5u;
+                        uint done = wd == 0u ? acc0.x : (wd == 1u ? acc0.y : (wd == 2u ? acc0.z : acc0.w));
+                        uint left = group_bits & ~done;
                         group_bits = 0u;
                         uint word_first = base + (first & ~31u);
                         while (left != 0u) {
