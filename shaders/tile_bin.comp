@@ -24,6 +24,11 @@ layout(set = 0, binding = 4) writeonly buffer TilePairs { uint tile_pairs[]; };
 layout(set = 0, binding = 5) uniform usamplerBuffer tile_occupancy_tb;
 layout(set = 0, binding = 6) uniform usamplerBuffer boxes_tb; // per tile: lo (w: valid), hi (clusters_bounds), float bits
 layout(set = 0, binding = 7) uniform usamplerBuffer triangles_tb; // GpuTriangle: 3 texels
+// Per pair whose rectangle spans at most 32 tiles: the tiles the count
+// kept, bit (ty - t0.y) * columns + (tx - t0.x). The scatter writes those
+// without the occupancy look-ups and the rules (the same tiles, so the
+// lists equal the count's).
+layout(set = 0, binding = 8) buffer PairTiles { uint pair_tiles[]; };
 
 void main() {
     uint i = linear_invocation();
@@ -44,7 +49,25 @@ void main() {
         plane = triangle_cluster_plane(triangles_tb, cf.ids.x);
     }
     uint light_side = 0u, behind_closed = 0u, far = 0u, outside = 0u;
-    for (uint ty = t0.y; ty <= t1.y; ty++) {
+    uvec2 span = t1 - t0 + 1u;
+    bool few = span.x * span.y <= 32u;
+    if (SCATTER != 0u) {
+        // A loop, not an `if`: lavapipe skips a loop no lane enters.
+        uint kept = few ? pair_tiles[i] : 0u;
+        while (kept != 0u) {
+            uint bit = uint(findLSB(kept));
+            kept &= kept - 1u;
+            uint tile = base + (t0.y + bit / span.x) * pc.more.y + t0.x + bit % span.x;
+            uint slot = texelFetch(tile_offsets_tb, int(tile)).x + atomicAdd(tile_counts[tile], 1u);
+            if (slot < uint(tile_pairs.length())) {
+                tile_pairs[slot] = i;
+            }
+        }
+    }
+    uint kept_tiles = 0u;
+    // The scatter's pairs of few tiles are done above.
+    uint last_row = SCATTER != 0u && few ? 0u : t1.y + 1u;
+    for (uint ty = t0.y; ty < last_row; ty++) {
         for (uint w = t0.x / 32u; w <= t1.x / 32u; w++) {
             // This word's occupied tiles inside the rectangle's columns.
             uint first = max(t0.x, w * 32u) - w * 32u, last = min(t1.x, w * 32u + 31u) - w * 32u;
@@ -75,6 +98,7 @@ void main() {
                         continue;
                     }
                 }
+                kept_tiles |= few ? 1u << ((ty - t0.y) * span.x + (tx - t0.x)) : 0u;
                 if (SCATTER == 0u) {
                     atomicAdd(tile_counts[tile], 1u);
                 } else {
@@ -87,6 +111,9 @@ void main() {
                 }
             }
         }
+    }
+    if (SCATTER == 0u && few) {
+        pair_tiles[i] = kept_tiles;
     }
     if (SCATTER == 0u && light_side != 0u) {
         atomicAdd(counters[COUNTER_CLUSTER_LIGHT_SIDE], light_side);

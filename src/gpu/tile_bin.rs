@@ -78,6 +78,10 @@ pub struct TileBinPass {
     pub unit_offsets: GrowBuffer,
     /// The binned pair indices, tile by tile.
     pub tile_pairs: GrowBuffer,
+    /// Per pair whose rectangle spans at most 32 tiles: the tiles the
+    /// count kept, one bit each (the scatter writes them without testing
+    /// the rules again).
+    pair_tiles: GrowBuffer,
 }
 
 /// What the count found: the binned pairs and the occlusion work units.
@@ -95,7 +99,7 @@ impl TileBinPass {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let sb = DescriptorKind::StorageBuffer;
         let tb = DescriptorKind::UniformTexelBuffer;
-        let bin_bindings = [sb, sb, sb, tb, sb, tb, tb, tb];
+        let bin_bindings = [sb, sb, sb, tb, sb, tb, tb, tb, sb];
         let make = |name, spirv, bindings: &[DescriptorKind], spec: &[(u32, u32)]| {
             ctx.create_compute_pipeline(&ComputePipelineDesc {
                 name,
@@ -159,6 +163,7 @@ impl TileBinPass {
             tile_units: GrowBuffer::storage("tile_units"),
             unit_offsets: GrowBuffer::storage("unit_offsets"),
             tile_pairs: GrowBuffer::storage("tile_pairs"),
+            pair_tiles: GrowBuffer::storage("pair_tiles"),
         })
     }
 
@@ -169,6 +174,8 @@ impl TileBinPass {
         self.tile_offsets.get(ctx, 4 * (tiles + 1))?;
         self.tile_units.get(ctx, 4 * tiles)?;
         self.unit_offsets.get(ctx, 4 * (tiles + 1))?;
+        self.pair_tiles
+            .get(ctx, 4 * frame.pair_capacity.max(1) as u64)?;
         Ok(())
     }
 
@@ -238,6 +245,7 @@ impl TileBinPass {
                 Binding::uniform_texel(&lists.tile_max_len, R32UI),
                 Binding::uniform_texel(&clusters.boxes, RGBA32UI),
                 Binding::uniform_texel(triangles, RGBA32UI),
+                storage(&self.pair_tiles),
             ];
             let count = &self.count[usize::from(soft.is_some())];
             rec.dispatch(count, &bindings, pc, groups(pair_capacity))?;
@@ -308,6 +316,7 @@ impl TileBinPass {
                 Binding::uniform_texel(&lists.tile_max_len, R32UI),
                 Binding::uniform_texel(&clusters.boxes, RGBA32UI),
                 Binding::uniform_texel(triangles, RGBA32UI),
+                storage(&self.pair_tiles),
             ];
             let scatter = &self.scatter[usize::from(soft)];
             rec.dispatch(scatter, &bindings, pc, groups(pair_capacity))?;
@@ -324,6 +333,7 @@ impl TileBinPass {
             &self.tile_units,
             &self.unit_offsets,
             &self.tile_pairs,
+            &self.pair_tiles,
         ]
         .iter()
         .map(|b| b.len())
