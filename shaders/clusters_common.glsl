@@ -16,6 +16,17 @@
 // bounds pass loops over a tile's samples in one invocation.
 #define CLUSTER_MAX_SAMPLES 16384u
 
+// Blocks of CLUSTER_BLOCK x CLUSTER_BLOCK tiles get a box too (the union
+// of their tiles' boxes, after them in the same buffer): binning tests a
+// pair against a block's box before its tiles' where the pair's rectangle
+// holds at least CLUSTER_BLOCK_MIN_TILES occupied tiles of the block, and
+// a block the rules drop drops each of those tiles. (A multiple of 32
+// tiles per occupancy word: a block's columns lie in one word.)
+#define CLUSTER_BLOCK 4u
+#define CLUSTER_BLOCK_MIN_TILES 4u
+// Pairs whose rectangle spans more tiles than this go by blocks.
+#define CLUSTER_BLOCK_PAIR_TILES 64u
+
 // What the rules found (cull_rule).
 #define CLUSTER_KEEP 0u
 #define CLUSTER_LIGHT_SIDE 1u
@@ -312,6 +323,16 @@ uint far_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
 uint bin_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
     uint rule = cull_rule(cp, lo, hi);
     return rule != CLUSTER_KEEP || !is_soft() ? rule : far_rule(cp, lo, hi);
+}
+
+// Blocks per row of tiles, and a block's box's first texel (after the
+// tiles' boxes).
+uint cluster_blocks_per_row() {
+    return (pc.more.y + CLUSTER_BLOCK - 1u) / CLUSTER_BLOCK;
+}
+uint cluster_block_box(uint face, uvec2 block) {
+    uint per_row = cluster_blocks_per_row();
+    return 2u * (pc.more.z * pc.sizes.w + (face * per_row + block.y) * per_row + block.x);
 }
 
 // Soft occlusion's rule for a chunk of samples (kept_pairs): cull_rule,

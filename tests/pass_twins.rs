@@ -7,7 +7,7 @@
 //! (`cpu::resolve`). The passes keep their buffers across frames, so the
 //! test reads them where the run left them.
 
-use alias_free_shadows::cpu::clusters::{tile_boxes, ClusterLight};
+use alias_free_shadows::cpu::clusters::{block_boxes, tile_boxes, ClusterLight};
 use alias_free_shadows::cpu::light_view::{fit_windows, LightView};
 use alias_free_shadows::cpu::resolve::{resolve_hard, resolve_soft};
 use alias_free_shadows::cpu::texel_lists::{build_texel_lists, tile_occupancy, NOT_LISTED};
@@ -142,7 +142,7 @@ fn check_hard_passes(
         LightView::Point { position } => ClusterLight::Point(position),
         LightView::Directional { direction } => ClusterLight::Directional(direction),
     };
-    let (pair_count, total) = check_bins(ctx, pipeline, inp, faces, tpr, cluster_light);
+    let (pair_count, total, _) = check_bins(ctx, pipeline, inp, faces, tpr, cluster_light);
 
     // Hard resolve: the shadow flags per list slot to lit per sample.
     let slots: Vec<u32> = read(ctx, &passes.texel_lists.sample_slot, n);
@@ -166,7 +166,8 @@ fn check_hard_passes(
 }
 
 /// The view-sample boxes and tile bins of the last run against their
-/// twins (fed the GPU's lists and pairs); returns (pairs, binned pairs).
+/// twins (fed the GPU's lists and pairs); returns (pairs, binned pairs,
+/// bins the twin dropped by blocks of tiles).
 /// Hard shadows (`light` not a sphere) get no boxes.
 fn check_bins(
     ctx: &GpuContext,
@@ -175,7 +176,7 @@ fn check_bins(
     faces: usize,
     tpr: u32,
     light: ClusterLight,
-) -> (usize, usize) {
+) -> (usize, usize, u32) {
     let soft = matches!(light, ClusterLight::Sphere(..));
     let passes = pipeline.passes();
     let tiles = faces * (tpr * tpr) as usize;
@@ -202,13 +203,29 @@ fn check_bins(
             );
         }
     }
+    let occupied: Vec<bool> = (0..tiles)
+        .map(|t| counts[t * 64..(t + 1) * 64].iter().any(|&c| c > 0))
+        .collect();
+    let blocks = block_boxes(&boxes, &occupied, tpr);
+    if soft {
+        let gpu_blocks: Vec<[f32; 4]> =
+            read(ctx, &passes.clusters.boxes, 2 * (tiles + blocks.len()));
+        for (k, b) in blocks.iter().enumerate() {
+            let (lo, hi) = (gpu_blocks[2 * (tiles + k)], gpu_blocks[2 * (tiles + k) + 1]);
+            assert_eq!(lo[3] == 1.0, b.is_some(), "block {k}: box validity");
+            if let Some(b) = b {
+                assert_eq!(
+                    [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]].map(f32::to_bits),
+                    [b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z].map(f32::to_bits),
+                    "block {k}: box"
+                );
+            }
+        }
+    }
     let c: Vec<u32> = read(ctx, &passes.counters, counter::COUNT);
     let pair_count = c[counter::PAIRS] as usize;
     let gpu_pairs: Vec<GpuCasterFace> = read(ctx, &passes.casters.pairs, pair_count);
     let pairs: Vec<_> = gpu_pairs.iter().map(caster_face_from_gpu).collect();
-    let occupied: Vec<bool> = (0..tiles)
-        .map(|t| counts[t * 64..(t + 1) * 64].iter().any(|&c| c > 0))
-        .collect();
     let triangles: Vec<([Vec3; 3], bool)> = inp
         .gpu_triangles
         .iter()
@@ -219,6 +236,7 @@ fn check_bins(
         .collect();
     let clusters = BinClusters {
         boxes: &boxes,
+        blocks: &blocks,
         light,
         triangles: &triangles,
     };
@@ -263,7 +281,7 @@ fn check_bins(
         bins.dropped_outside_hull,
         total as u32 + dropped
     );
-    (pair_count, total)
+    (pair_count, total, bins.dropped_by_blocks)
 }
 
 #[test]
@@ -291,6 +309,46 @@ fn hard_passes_match_their_twins() {
             .unwrap();
         check_hard_passes(&ctx, &pipeline, &inp, &light, res);
     }
+    ctx.check_validation().unwrap();
+}
+
+/// Soft casters whose rectangles span many tiles are binned by blocks of
+/// tiles first (the light-texel maps here are large for the view, so that
+/// many do): the blocks' boxes and the bins against the twin's.
+#[test]
+fn soft_bins_by_blocks_match_their_twin() {
+    let ctx = GpuContext::new(&ContextOptions::validated()).unwrap();
+    let mut pipeline = ShadowPipeline::new(&ctx).unwrap();
+    let mut by_blocks = 0;
+    for (spec, texels) in [
+        ("builtin:torus_knot:2000", 256),
+        ("builtin:plane_sphere", 192),
+    ] {
+        let inp = inputs(spec, 48);
+        let eye = inp.desc.camera.eye;
+        let settings = ShadowSettings::default();
+        let light = common::sphere_light(&inp.desc, 128);
+        let (sl, lv): (SoftLight, LightView) = render::soft_light(&light, eye, &settings).unwrap();
+        pipeline
+            .run(
+                &ctx,
+                &inp.gpu_samples,
+                &inp.gpu_triangles,
+                &lv,
+                texels,
+                Some(&sl),
+            )
+            .unwrap();
+        let LightView::Point { position } = lv else {
+            panic!("a light with extent is seen from its centre")
+        };
+        let sphere = ClusterLight::Sphere(position, sl.bounds().1);
+        let tpr = texels.div_ceil(TILE);
+        let (_, _, dropped) = check_bins(&ctx, &pipeline, &inp, lv.face_count(), tpr, sphere);
+        eprintln!("{spec}: {dropped} bins dropped by blocks");
+        by_blocks += dropped;
+    }
+    assert!(by_blocks > 0, "some block must drop its tiles");
     ctx.check_validation().unwrap();
 }
 

@@ -19,6 +19,18 @@ pub const CLUSTER_CROSS_ROUNDING: f32 = 16.0 * f32::EPSILON;
 /// Tiles with more listed samples get no box (`CLUSTER_MAX_SAMPLES`).
 pub const CLUSTER_MAX_SAMPLES: usize = 16384;
 
+/// Tiles per side of a block (`CLUSTER_BLOCK`): binning tests a pair
+/// whose rectangle spans more than [`CLUSTER_BLOCK_PAIR_TILES`] tiles
+/// against a block's box (the union of its tiles' boxes) before the tiles'
+/// boxes.
+pub const CLUSTER_BLOCK: u32 = 4;
+/// The occupied tiles of a block inside a pair's rectangle for which the
+/// block's box is tested (`CLUSTER_BLOCK_MIN_TILES`).
+pub const CLUSTER_BLOCK_MIN_TILES: u32 = 4;
+/// Pairs whose rectangle spans more tiles go by blocks
+/// (`CLUSTER_BLOCK_PAIR_TILES`).
+pub const CLUSTER_BLOCK_PAIR_TILES: u32 = 64;
+
 /// The box of a tile's listed samples (camera-relative).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TileBox {
@@ -44,6 +56,48 @@ pub fn tile_boxes(offsets: &[u32], positions: &[Vec3]) -> Vec<Option<TileBox>> {
             Some(TileBox { lo, hi })
         })
         .collect()
+}
+
+/// Per block of [`CLUSTER_BLOCK`]² tiles (face by face, row by row), the
+/// union of the `boxes` of its tiles that hold samples (`occupied`), or
+/// `None` when one of those has no box or none holds samples
+/// (`clusters_bounds.comp` with `BLOCKS = 1`). Tiles are indexed
+/// `face · tiles_per_row² + y · tiles_per_row + x`.
+pub fn block_boxes(
+    boxes: &[Option<TileBox>],
+    occupied: &[bool],
+    tiles_per_row: u32,
+) -> Vec<Option<TileBox>> {
+    let per_face = (tiles_per_row * tiles_per_row) as usize;
+    let faces = boxes.len().checked_div(per_face).unwrap_or(0);
+    let per_row = tiles_per_row.div_ceil(CLUSTER_BLOCK);
+    let mut out = Vec::with_capacity(faces * (per_row * per_row) as usize);
+    for face in 0..faces {
+        for by in 0..per_row {
+            for bx in 0..per_row {
+                let mut union: Option<TileBox> = None;
+                let mut valid = true;
+                for ty in by * CLUSTER_BLOCK..((by + 1) * CLUSTER_BLOCK).min(tiles_per_row) {
+                    for tx in bx * CLUSTER_BLOCK..((bx + 1) * CLUSTER_BLOCK).min(tiles_per_row) {
+                        let t = face * per_face + (ty * tiles_per_row + tx) as usize;
+                        if !occupied[t] {
+                            continue;
+                        }
+                        match (boxes[t], &mut union) {
+                            (None, _) => valid = false,
+                            (Some(b), None) => union = Some(b),
+                            (Some(b), Some(u)) => {
+                                u.lo = u.lo.min(b.lo);
+                                u.hi = u.hi.max(b.hi);
+                            }
+                        }
+                    }
+                }
+                out.push(union.filter(|_| valid));
+            }
+        }
+    }
+    out
 }
 
 /// The light as the rules see it (camera-relative).
@@ -501,6 +555,39 @@ mod tests {
             })
         );
         assert_eq!(boxes[2], None);
+    }
+
+    #[test]
+    fn blocks_unite_their_occupied_tiles_and_need_every_box() {
+        // Tiles per row 5: blocks of 4 per side, 2 per row, one face.
+        let unit = |v: f32| {
+            Some(TileBox {
+                lo: Vec3::splat(v),
+                hi: Vec3::splat(v + 1.0),
+            })
+        };
+        let mut boxes = vec![None; 25];
+        let mut occupied = vec![false; 25];
+        for (t, v) in [(0, 0.0), (18, 2.0), (4, 5.0)] {
+            boxes[t] = unit(v);
+            occupied[t] = true;
+        }
+        // Tile 24 holds samples but has no box: its block (1, 1) gets none.
+        occupied[24] = true;
+        // Tile 1 has a stale box but no samples: left out.
+        boxes[1] = unit(-9.0);
+        let blocks = block_boxes(&boxes, &occupied, 5);
+        assert_eq!(blocks.len(), 4);
+        assert_eq!(
+            blocks[0],
+            Some(TileBox {
+                lo: Vec3::splat(0.0),
+                hi: Vec3::splat(3.0)
+            })
+        );
+        assert_eq!(blocks[1], unit(5.0));
+        assert_eq!(blocks[2], None);
+        assert_eq!(blocks[3], None);
     }
 
     /// Soft occlusion's per-sample early outs for (x, caster) in f64, as

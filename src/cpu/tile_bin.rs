@@ -3,13 +3,21 @@
 //! of [`TILE`]² light texels that its texel rectangle and edge functions
 //! may touch, unless the tile holds no view sample or the tile's
 //! view-sample box drops the caster ([`crate::cpu::clusters::bin_rule`]).
+//! With boxes, a pair whose rectangle spans more than
+//! [`CLUSTER_BLOCK_PAIR_TILES`] tiles is first tested against the box of
+//! each block of [`CLUSTER_BLOCK`]² tiles that holds at least
+//! [`CLUSTER_BLOCK_MIN_TILES`] of the rectangle's occupied tiles: a block
+//! the rules drop drops each of those (and counts each so).
 //!
 //! The GPU appends pairs to a tile's list in atomic order, so its lists
 //! equal the twin's as sets. [`crate::cpu::occlusion`] visits the touched
 //! texels directly, without tiles: a reference for the binning too.
 
 use super::casters::{square_overlaps, CasterFace};
-use super::clusters::{bin_rule, cluster_plane, ClusterLight, ClusterRule, TileBox};
+use super::clusters::{
+    bin_rule, cluster_plane, ClusterLight, ClusterRule, TileBox, CLUSTER_BLOCK,
+    CLUSTER_BLOCK_MIN_TILES, CLUSTER_BLOCK_PAIR_TILES,
+};
 use crate::gpu::shared::GpuCasterFace;
 
 /// Texels per side of a rasterization tile (`TILE` in `shadow_common.glsl`).
@@ -66,6 +74,9 @@ pub fn tiles_touched(cf: &CasterFace) -> Vec<(u32, u32)> {
 pub struct BinClusters<'a> {
     /// Per tile, the box of its listed samples.
     pub boxes: &'a [Option<TileBox>],
+    /// Per block of tiles, the union of its tiles' boxes
+    /// ([`crate::cpu::clusters::block_boxes`]).
+    pub blocks: &'a [Option<TileBox>],
     /// The light the rules test the boxes against.
     pub light: ClusterLight,
     /// Per triangle of the run: vertices (camera-relative) and whether it
@@ -91,6 +102,9 @@ pub struct Bins {
     /// (Pair, tile) bins dropped because the caster's ball lies outside the
     /// hull of the box's ball and the light's sphere (soft shadows).
     pub dropped_outside_hull: u32,
+    /// Of the dropped bins, those dropped by their block's box (each is
+    /// also counted under its rule).
+    pub dropped_by_blocks: u32,
 }
 
 /// Bins every pair into the tiles it touches; `occupied[tile]`: whether the
@@ -106,18 +120,55 @@ pub fn bin_pairs(
         tiles: vec![Vec::new(); occupied.len()],
         ..Bins::default()
     };
+    let per_row = tiles_per_row.div_ceil(CLUSTER_BLOCK);
     for (i, cf) in pairs.iter().enumerate() {
         let plane = clusters.map(|c| {
             let (v, closed) = c.triangles[cf.triangle as usize];
             cluster_plane(v, closed, &c.light)
         });
+        let [x0, y0, x1, y1] = cf.rect.map(|t| t / TILE);
+        let by_blocks =
+            clusters.is_some() && (x1 - x0 + 1) * (y1 - y0 + 1) > CLUSTER_BLOCK_PAIR_TILES;
+        // Per block of a pair binned by blocks: the rule that dropped it.
+        let mut block_rules = std::collections::HashMap::new();
+        if let (true, Some(c), Some(p)) = (by_blocks, clusters, &plane) {
+            for by in y0 / CLUSTER_BLOCK..=y1 / CLUSTER_BLOCK {
+                for bx in x0 / CLUSTER_BLOCK..=x1 / CLUSTER_BLOCK {
+                    let tiles: Vec<_> = (by * CLUSTER_BLOCK..(by + 1) * CLUSTER_BLOCK)
+                        .filter(|ty| (y0..=y1).contains(ty))
+                        .flat_map(|ty| {
+                            (bx * CLUSTER_BLOCK..(bx + 1) * CLUSTER_BLOCK)
+                                .filter(|tx| (x0..=x1).contains(tx))
+                                .map(move |tx| {
+                                    (cf.face * per_face + ty * tiles_per_row + tx) as usize
+                                })
+                        })
+                        .filter(|&t| occupied[t])
+                        .collect();
+                    let block = ((cf.face * per_row + by) * per_row + bx) as usize;
+                    let rule = match c.blocks[block] {
+                        Some(b) if tiles.len() as u32 >= CLUSTER_BLOCK_MIN_TILES => {
+                            bin_rule(p, &b, &c.light)
+                        }
+                        _ => None,
+                    };
+                    if let Some(rule) = rule {
+                        block_rules.insert((bx, by), rule);
+                    }
+                }
+            }
+        }
         for (tx, ty) in tiles_touched(cf) {
             let tile = (cf.face * per_face + ty * tiles_per_row + tx) as usize;
             if !occupied[tile] {
                 continue;
             }
+            let block_rule = block_rules.get(&(tx / CLUSTER_BLOCK, ty / CLUSTER_BLOCK));
+            bins.dropped_by_blocks += u32::from(block_rule.is_some());
             let rule = match (clusters, &plane) {
-                (Some(c), Some(p)) => c.boxes[tile].and_then(|b| bin_rule(p, &b, &c.light)),
+                (Some(c), Some(p)) => block_rule
+                    .copied()
+                    .or_else(|| c.boxes[tile].and_then(|b| bin_rule(p, &b, &c.light))),
                 _ => None,
             };
             match rule {

@@ -26,6 +26,7 @@ pub struct CasterPass {
     setup: [ComputePipeline; 2],
     clip_args: ComputePipeline,
     clip: ComputePipeline,
+    pair_args: ComputePipeline,
     /// Per triangle: its planes (`CasterPlanes`, 80 B).
     pub planes: GrowBuffer,
     /// Per (triangle, face): `CasterFace` (64 B); the first
@@ -35,6 +36,9 @@ pub struct CasterPass {
     clip_items: GrowBuffer,
     /// The clip pass's indirect workgroup counts.
     clip_dispatch: GrowBuffer,
+    /// Indirect workgroup counts of one invocation per written pair (tile
+    /// binning's dispatches).
+    pub pair_dispatch: GrowBuffer,
 }
 
 impl CasterPass {
@@ -77,10 +81,20 @@ impl CasterPass {
                 &[],
             )?,
             clip: make("casters_clip", shaders::CASTERS_CLIP, &casters, &[])?,
+            pair_args: make(
+                "casters_pair_args",
+                shaders::CASTERS_CLIP_ARGS,
+                &[sb; 2],
+                &[(1, 1)],
+            )?,
             planes: GrowBuffer::storage("caster_planes"),
             pairs: GrowBuffer::storage("caster_faces"),
             clip_items: GrowBuffer::storage("caster_clip_items"),
-            clip_dispatch: GrowBuffer::new(args),
+            clip_dispatch: GrowBuffer::new(args.clone()),
+            pair_dispatch: GrowBuffer::new(BufferDesc {
+                name: "caster_pair_args".into(),
+                ..args
+            }),
         })
     }
 
@@ -90,6 +104,7 @@ impl CasterPass {
         self.pairs.get(ctx, 64 * frame.pair_capacity as u64)?;
         self.clip_items.get(ctx, 8 * frame.nt as u64)?;
         self.clip_dispatch.get(ctx, 16)?;
+        self.pair_dispatch.get(ctx, 16)?;
         Ok(())
     }
 
@@ -119,6 +134,9 @@ impl CasterPass {
             rec.barrier(Barrier::ComputeToIndirect);
             rec.dispatch_indirect(&self.clip, &casters, pc, self.clip_dispatch.buffer())?;
             rec.barrier(Barrier::ComputeToCompute);
+            let args = [storage(counters), storage(&self.pair_dispatch)];
+            rec.dispatch(&self.pair_args, &args, pc, [1, 1, 1])?;
+            rec.barrier(Barrier::ComputeToIndirect);
             Ok(())
         })
     }

@@ -1,7 +1,8 @@
 //! View-sample clusters (Sintorn, Kämpe, Olsson, Assarsson 2014): per tile
 //! of light texels, the box of its listed view samples
-//! (`clusters_bounds.comp`). Tile binning tests each caster against the
-//! boxes of the tiles it covers and drops it where it cannot block any of
+//! (`clusters_bounds.comp`), and per block of tiles the union of its tiles'
+//! boxes. Tile binning tests each caster against the boxes of the tiles it
+//! covers (a caster of many tiles against their blocks' boxes first) and drops it where it cannot block any of
 //! their samples (`clusters_common.glsl`, `bin_rule`: every sample on the
 //! light's side of its plane, or behind a closed caster; for soft shadows
 //! also the caster beyond the reach of every sample, or outside the hull of
@@ -14,6 +15,7 @@
 //! outs taken for a whole box with a margin far above their rounding: the
 //! masks stay bit-identical. CPU twin: [`crate::cpu::clusters`].
 
+use crate::cpu::clusters::CLUSTER_BLOCK;
 use crate::gpu::dispatch::{groups, storage, RGBA32UI};
 use crate::gpu::light_frame::{LightFrame, Recording};
 use crate::gpu::shaders;
@@ -24,39 +26,51 @@ use crate::vulkan::{
 };
 use crate::Result;
 
-/// The bounds pipeline and the boxes it writes.
+/// The bounds pipelines and the boxes they write.
 pub struct ClusterPass {
     bounds: ComputePipeline,
-    /// Per tile: two `vec4`, lo (w: 1 when valid) and hi.
+    block_bounds: ComputePipeline,
+    /// Per tile, then per block of [`CLUSTER_BLOCK`]² tiles (face by face,
+    /// row by row; tile binning tests the pairs of many tiles against
+    /// them first): two `vec4`, lo (w: 1 when valid) and hi.
     pub boxes: GrowBuffer,
     /// When false the boxes are all invalid (zeros): nothing is culled.
     pub enabled: bool,
 }
 
 impl ClusterPass {
-    /// Builds the pipeline.
+    /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let bounds = ctx.create_compute_pipeline(&ComputePipelineDesc {
-            name: "clusters_bounds",
-            spirv: shaders::CLUSTERS_BOUNDS,
-            bindings: &[
-                DescriptorKind::StorageBuffer,
-                DescriptorKind::UniformTexelBuffer,
-                DescriptorKind::StorageBuffer,
-            ],
-            push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
-            specialization: &[],
-        })?;
+        let make = |name, specialization: &[(u32, u32)]| {
+            ctx.create_compute_pipeline(&ComputePipelineDesc {
+                name,
+                spirv: shaders::CLUSTERS_BOUNDS,
+                bindings: &[
+                    DescriptorKind::StorageBuffer,
+                    DescriptorKind::UniformTexelBuffer,
+                    DescriptorKind::StorageBuffer,
+                ],
+                push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
+                specialization,
+            })
+        };
         Ok(ClusterPass {
-            bounds,
+            bounds: make("clusters_bounds", &[])?,
+            block_bounds: make("clusters_block_bounds", &[(1, 1)])?,
             boxes: GrowBuffer::storage("cluster_boxes"),
             enabled: true,
         })
     }
 
-    /// Sizes the boxes for the frame's tiles.
+    /// Blocks of the frame's tiles.
+    pub fn blocks(frame: &LightFrame) -> u32 {
+        frame.faces * frame.tiles_per_row.div_ceil(CLUSTER_BLOCK).pow(2)
+    }
+
+    /// Sizes the boxes for the frame's tiles and blocks.
     pub fn prepare(&mut self, ctx: &GpuContext, frame: &LightFrame) -> Result<()> {
-        self.boxes.get(ctx, 32 * frame.tiles as u64)?;
+        self.boxes
+            .get(ctx, 32 * (frame.tiles + Self::blocks(frame)) as u64)?;
         Ok(())
     }
 
@@ -66,6 +80,7 @@ impl ClusterPass {
     /// that in binning (warm frames of torus_knot:100000, ToyCar, hairball).
     pub fn record(&self, r: &mut Recording, lists: &TexelListPass, soft: bool) -> Result<()> {
         let tiles = r.frame.tiles;
+        let blocks = Self::blocks(&r.frame);
         r.pass("cluster_bounds", |rec, pc| {
             if !self.enabled || !soft {
                 rec.fill_buffer(self.boxes.slice(), 0)?;
@@ -80,6 +95,8 @@ impl ClusterPass {
             ];
             rec.dispatch(&self.bounds, &bindings, pc, groups(tiles))?;
             rec.barrier(Barrier::ComputeToCompute);
+            rec.dispatch(&self.block_bounds, &bindings, pc, groups(blocks))?;
+            rec.barrier(Barrier::ComputeToCompute);
             Ok(())
         })
     }
@@ -87,5 +104,24 @@ impl ClusterPass {
     /// Bytes this run binds.
     pub fn bytes(&self) -> u64 {
         self.boxes.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn block_constants_match_the_shaders() {
+        let glsl = include_str!("../../shaders/clusters_common.glsl");
+        let define = |name: &str| crate::gpu::shared::tests::glsl_define(glsl, name);
+        use crate::cpu::clusters::*;
+        assert_eq!(define("CLUSTER_BLOCK"), Some(CLUSTER_BLOCK as u64));
+        assert_eq!(
+            define("CLUSTER_BLOCK_MIN_TILES"),
+            Some(CLUSTER_BLOCK_MIN_TILES as u64)
+        );
+        assert_eq!(
+            define("CLUSTER_BLOCK_PAIR_TILES"),
+            Some(CLUSTER_BLOCK_PAIR_TILES as u64)
+        );
     }
 }
