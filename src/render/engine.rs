@@ -8,7 +8,7 @@ use glam::DVec3;
 
 use super::inputs::{light_view, soft_light, user_gpu_inputs};
 use super::validate::{validate_gpu_inputs, validate_shadow_inputs};
-use crate::cpu::alpha::AlphaTables;
+use crate::cpu::alpha::{AlphaTables, AlphaTablesCache};
 use crate::cpu::light_view::LightView;
 use crate::gpu::alpha::mark_alpha_triangles;
 use crate::gpu::shared::{GpuTriangle, GpuViewSample};
@@ -32,6 +32,8 @@ pub struct Engine {
     pub(super) shadows: ShadowPipeline,
     /// The shading normals of the last frame's scene.
     pub(super) shading: ShadingCache,
+    /// The alpha tables of the last scene the shadow passes were given.
+    pub(super) alpha: AlphaTablesCache,
     /// Counts the frames whose view samples and triangles the GPU buffers
     /// hold ([`super::FrameReuse`] reuses them only while it is its own).
     pub(super) frame_id: u64,
@@ -95,6 +97,7 @@ impl Engine {
             view,
             shadows,
             shading: ShadingCache::default(),
+            alpha: AlphaTablesCache::default(),
             frame_id: 0,
             visibility_out,
             record_status: None,
@@ -146,9 +149,9 @@ impl Engine {
         samples: &[Option<ViewSample>],
     ) -> Result<(Vec<GpuViewSample>, Vec<GpuTriangle>)> {
         let (vs, mut ts) = user_gpu_inputs(scene, eye, samples);
-        let tables = AlphaTables::new(scene);
-        mark_alpha_triangles(&mut ts, &tables);
-        self.shadows.set_alpha(&self.ctx, &tables)?;
+        let (tables, _) = self.alpha.get(scene);
+        mark_alpha_triangles(&mut ts, tables);
+        self.shadows.set_alpha(&self.ctx, tables)?;
         Ok((vs, ts))
     }
 

@@ -35,7 +35,6 @@
 
 use super::inputs::frame_light;
 use super::Engine;
-use crate::cpu::alpha::AlphaTables;
 use crate::cpu::light_view::LightView;
 use crate::gpu::alpha::mark_alpha_triangles;
 use crate::gpu::gpu_inputs;
@@ -180,9 +179,9 @@ impl Engine {
         let eye = desc.camera.eye;
         let lights = frame_lights(desc)?;
         let (_, mut tris) = gpu_inputs(&[], &gpu_triangles(&desc.scene, eye));
-        let alpha = AlphaTables::new(&desc.scene);
-        mark_alpha_triangles(&mut tris, &alpha);
-        self.shadows.set_alpha(&self.ctx, &alpha)?;
+        let (alpha, _) = self.alpha.get(&desc.scene);
+        mark_alpha_triangles(&mut tris, alpha);
+        self.shadows.set_alpha(&self.ctx, alpha)?;
         let any_alpha = self.shadows.alpha().1;
         self.view
             .prepare_for_caller(&self.ctx, &desc.camera, &tris, any_alpha)?;
