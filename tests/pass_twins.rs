@@ -15,7 +15,7 @@ use alias_free_shadows::cpu::tile_bin::{bin_pairs, caster_face_from_gpu, BinClus
 use alias_free_shadows::gpu::shared::{
     counter, GpuCasterFace, GpuLightFace, GpuViewSample, TRIANGLE_CLOSED,
 };
-use alias_free_shadows::gpu::{gpu_inputs, ShadowPipeline, SoftLight};
+use alias_free_shadows::gpu::{gpu_inputs, ShadowOutput, ShadowPipeline, SoftLight};
 use alias_free_shadows::oracle::Oracle;
 use alias_free_shadows::render;
 use alias_free_shadows::scene::file::{self, ShadowSettings, SoftMode};
@@ -312,6 +312,40 @@ fn hard_passes_match_their_twins() {
     ctx.check_validation().unwrap();
 }
 
+/// Runs the soft passes on `inp` for the bench's sphere light with
+/// `samples` light samples at `texels` light texels per face side, and
+/// checks the boxes and bins against their twins; returns the output, the
+/// light, and the bins the twin dropped by blocks of tiles.
+fn run_soft_checked(
+    ctx: &GpuContext,
+    pipeline: &mut ShadowPipeline,
+    inp: &Inputs,
+    settings: &ShadowSettings,
+    samples: u32,
+    texels: u32,
+) -> (ShadowOutput, SoftLight, u32) {
+    let light = common::sphere_light(&inp.desc, samples);
+    let eye = inp.desc.camera.eye;
+    let (sl, lv): (SoftLight, LightView) = render::soft_light(&light, eye, settings).unwrap();
+    let out = pipeline
+        .run(
+            ctx,
+            &inp.gpu_samples,
+            &inp.gpu_triangles,
+            &lv,
+            texels,
+            Some(&sl),
+        )
+        .unwrap();
+    let LightView::Point { position } = lv else {
+        panic!("a light with extent is seen from its centre")
+    };
+    let sphere = ClusterLight::Sphere(position, sl.bounds().1);
+    let tpr = texels.div_ceil(TILE);
+    let (_, _, dropped) = check_bins(ctx, pipeline, inp, lv.face_count(), tpr, sphere);
+    (out, sl, dropped)
+}
+
 /// Soft casters whose rectangles span many tiles are binned by blocks of
 /// tiles first (the light-texel maps here are large for the view, so that
 /// many do): the blocks' boxes and the bins against the twin's.
@@ -325,26 +359,8 @@ fn soft_bins_by_blocks_match_their_twin() {
         ("builtin:plane_sphere", 192),
     ] {
         let inp = inputs(spec, 48);
-        let eye = inp.desc.camera.eye;
         let settings = ShadowSettings::default();
-        let light = common::sphere_light(&inp.desc, 128);
-        let (sl, lv): (SoftLight, LightView) = render::soft_light(&light, eye, &settings).unwrap();
-        pipeline
-            .run(
-                &ctx,
-                &inp.gpu_samples,
-                &inp.gpu_triangles,
-                &lv,
-                texels,
-                Some(&sl),
-            )
-            .unwrap();
-        let LightView::Point { position } = lv else {
-            panic!("a light with extent is seen from its centre")
-        };
-        let sphere = ClusterLight::Sphere(position, sl.bounds().1);
-        let tpr = texels.div_ceil(TILE);
-        let (_, _, dropped) = check_bins(&ctx, &pipeline, &inp, lv.face_count(), tpr, sphere);
+        let (_, _, dropped) = run_soft_checked(&ctx, &mut pipeline, &inp, &settings, 128, texels);
         eprintln!("{spec}: {dropped} bins dropped by blocks");
         by_blocks += dropped;
     }
@@ -357,35 +373,17 @@ fn soft_resolve_matches_its_twin() {
     let ctx = GpuContext::new(&ContextOptions::validated()).unwrap();
     let mut pipeline = ShadowPipeline::new(&ctx).unwrap();
     let inp = inputs("builtin:demo", 64);
-    let eye = inp.desc.camera.eye;
     for (mode, samples) in [(SoftMode::Exact, 200), (SoftMode::Lut, 128)] {
         let settings = ShadowSettings {
             mode,
             ..Default::default()
         };
-        let light = common::sphere_light(&inp.desc, samples);
-        let (sl, lv): (SoftLight, LightView) = render::soft_light(&light, eye, &settings).unwrap();
         let texels = settings.soft_light_texels.resolve(
             inp.gpu_samples.len(),
             inp.gpu_triangles.len(),
             true,
         );
-        let out = pipeline
-            .run(
-                &ctx,
-                &inp.gpu_samples,
-                &inp.gpu_triangles,
-                &lv,
-                texels,
-                Some(&sl),
-            )
-            .unwrap();
-        let LightView::Point { position } = lv else {
-            panic!("a light with extent is seen from its centre")
-        };
-        let tpr = texels.div_ceil(TILE);
-        let sphere = ClusterLight::Sphere(position, sl.bounds().1);
-        check_bins(&ctx, &pipeline, &inp, lv.face_count(), tpr, sphere);
+        let (out, sl, _) = run_soft_checked(&ctx, &mut pipeline, &inp, &settings, samples, texels);
         let passes = pipeline.passes();
         let n = inp.samples.len();
         let words = sl.mask_words();
