@@ -220,7 +220,8 @@ void count_wide(uint lo, uint value) {
 }
 
 // Exact mode's alpha round: sample K of a light-sample group (`first`
-// its first, n_block the block's samples), tested without a loop.
+// its first, n_block the block's samples), tested without a loop; groups
+// of 16 (LIGHT_GROUP_SIZE, held to 16 by gpu::soft_light).
 #define GROUP_SAMPLE(K)                                                      \
     {                                                                        \
         uint jl = first + uint(K);                                           \

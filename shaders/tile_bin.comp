@@ -42,6 +42,29 @@ struct PairBins {
     uint light_side, behind_closed, far, outside, kept_tiles;
 };
 
+// Pair i into `tile`: counted, or written at the tile's next slot.
+void bin_into(uint i, uint tile) {
+    if (SCATTER == 0u) {
+        atomicAdd(tile_counts[tile], 1u);
+    } else {
+        uint slot = texelFetch(tile_offsets_tb, int(tile)).x + atomicAdd(tile_counts[tile], 1u);
+        // A caller's recording binds a list of fixed capacity: past it,
+        // record_args.comp reports the overflow and runs no unit.
+        if (slot < uint(tile_pairs.length())) {
+            tile_pairs[slot] = i;
+        }
+    }
+}
+
+// `n` tiles dropped by `rule` (none for CLUSTER_KEEP), in the count's
+// per-rule drops.
+void count_drops(uint rule, uint n, inout PairBins b) {
+    b.light_side += rule == CLUSTER_LIGHT_SIDE ? n : 0u;
+    b.behind_closed += rule == CLUSTER_BEHIND_CLOSED ? n : 0u;
+    b.far += rule == CLUSTER_BEYOND_REACH ? n : 0u;
+    b.outside += rule == CLUSTER_OUTSIDE_HULL ? n : 0u;
+}
+
 // Pair i's occupied tile (tx, ty) of its face: the edge test (hard pairs)
 // and the rules for the tile's box (soft pairs), then the count or the
 // write.
@@ -62,25 +85,13 @@ void bin_tile(uint i, CasterFace cf, ClusterPlane plane, uvec2 rmin, uvec2 rmax,
     if (CLUSTERS != 0u && box_lo.w != 0.0) {
         vec3 box_hi = uintBitsToFloat(texelFetch(boxes_tb, int(2u * tile + 1u)).xyz);
         uint rule = bin_rule(plane, box_lo.xyz, box_hi);
-        b.light_side += rule == CLUSTER_LIGHT_SIDE ? 1u : 0u;
-        b.behind_closed += rule == CLUSTER_BEHIND_CLOSED ? 1u : 0u;
-        b.far += rule == CLUSTER_BEYOND_REACH ? 1u : 0u;
-        b.outside += rule == CLUSTER_OUTSIDE_HULL ? 1u : 0u;
+        count_drops(rule, 1u, b);
         if (rule != CLUSTER_KEEP) {
             return;
         }
     }
     b.kept_tiles |= few ? 1u << ((ty - t0.y) * span.x + (tx - t0.x)) : 0u;
-    if (SCATTER == 0u) {
-        atomicAdd(tile_counts[tile], 1u);
-    } else {
-        uint slot = texelFetch(tile_offsets_tb, int(tile)).x + atomicAdd(tile_counts[tile], 1u);
-        // A caller's recording binds a list of fixed capacity: past it,
-        // record_args.comp reports the overflow and runs no unit.
-        if (slot < uint(tile_pairs.length())) {
-            tile_pairs[slot] = i;
-        }
-    }
+    bin_into(i, tile);
 }
 
 // The occupied tiles of row ty of the face in columns [first, last] of
@@ -119,11 +130,7 @@ void main() {
         while (kept != 0u) {
             uint bit = uint(findLSB(kept));
             kept &= kept - 1u;
-            uint tile = base + (t0.y + bit / span.x) * pc.more.y + t0.x + bit % span.x;
-            uint slot = texelFetch(tile_offsets_tb, int(tile)).x + atomicAdd(tile_counts[tile], 1u);
-            if (slot < uint(tile_pairs.length())) {
-                tile_pairs[slot] = i;
-            }
+            bin_into(i, base + (t0.y + bit / span.x) * pc.more.y + t0.x + bit % span.x);
         }
     }
     // Row by row (the scatter's pairs of few tiles are done above).
@@ -175,10 +182,7 @@ void main() {
                     rule = bin_rule(plane, block_lo.xyz, block_hi);
                     test = false;
                 }
-                b.light_side += rule == CLUSTER_LIGHT_SIDE ? n : 0u;
-                b.behind_closed += rule == CLUSTER_BEHIND_CLOSED ? n : 0u;
-                b.far += rule == CLUSTER_BEYOND_REACH ? n : 0u;
-                b.outside += rule == CLUSTER_OUTSIDE_HULL ? n : 0u;
+                count_drops(rule, n, b);
                 uint keep = rule == CLUSTER_KEEP ? 0xffffffffu : 0u;
                 for (uint dy = 0u; dy < CLUSTER_BLOCK; dy++) {
                     uint occupied = keep & (dy == 0u ? o0 : (dy == 1u ? o1 : (dy == 2u ? o2 : o3)));

@@ -109,7 +109,8 @@ impl CasterPass {
     }
 
     /// Records setup, then the clip of the projections that need it (after
-    /// the light fit wrote `faces`).
+    /// the light fit wrote `faces`), then the indirect workgroup counts of
+    /// the pairs written (`pair_dispatch`).
     pub fn record(
         &self,
         r: &mut Recording,

@@ -2,8 +2,8 @@
 //! of light texels, the box of its listed view samples
 //! (`clusters_bounds.comp`), and per block of tiles the union of its tiles'
 //! boxes. Tile binning tests each caster against the boxes of the tiles it
-//! covers (a caster of many tiles against their blocks' boxes first) and drops it where it cannot block any of
-//! their samples (`clusters_common.glsl`, `bin_rule`: every sample on the
+//! covers (a caster of many tiles against their blocks' boxes first) and
+//! drops it where it cannot block any of their samples (`clusters_common.glsl`, `bin_rule`: every sample on the
 //! light's side of its plane, or behind a closed caster; for soft shadows
 //! also the caster beyond the reach of every sample, or outside the hull of
 //! the box's ball and the light), so that occlusion never visits the pair.

@@ -12,6 +12,9 @@ pub const MAX_SOFT_SAMPLES: usize = 1024;
 pub const LIGHT_GROUP_SIZE: usize = 16;
 // A group never spans two blocks, and its bits lie in one word.
 const _: () = assert!(128 % LIGHT_GROUP_SIZE == 0 && LIGHT_GROUP_SIZE <= 32);
+// soft_occlusion.comp's alpha round unrolls a group's 16 samples
+// (FOR_GROUP_SAMPLES).
+const _: () = assert!(LIGHT_GROUP_SIZE == 16);
 
 /// Per group of [`LIGHT_GROUP_SIZE`] consecutive samples, a sphere that
 /// holds them: centre xyz, radius w, every sample's distance from the

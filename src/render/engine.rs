@@ -149,10 +149,20 @@ impl Engine {
         samples: &[Option<ViewSample>],
     ) -> Result<(Vec<GpuViewSample>, Vec<GpuTriangle>)> {
         let (vs, mut ts) = user_gpu_inputs(scene, eye, samples);
-        let (tables, _) = self.alpha.get(scene);
-        mark_alpha_triangles(&mut ts, tables);
-        self.shadows.set_alpha(&self.ctx, tables)?;
+        self.set_scene_alpha(scene, &mut ts)?;
         Ok((vs, ts))
+    }
+
+    /// Marks `scene`'s alpha-tested `triangles` (its triangles in GPU form)
+    /// and hands their tables, kept across frames, to the shadow passes.
+    pub(super) fn set_scene_alpha(
+        &mut self,
+        scene: &Scene,
+        triangles: &mut [GpuTriangle],
+    ) -> Result<()> {
+        let (tables, _) = self.alpha.get(scene);
+        mark_alpha_triangles(triangles, tables);
+        self.shadows.set_alpha(&self.ctx, tables)
     }
 
     /// Soft-shadow visibility (paper §4) of user-supplied view samples (as in

@@ -10,7 +10,6 @@ use rayon::prelude::*;
 use super::dump_assembly::make_dump;
 use super::inputs::{frame_light, gpu_triangles};
 use super::{Engine, Frame, FrameOptions};
-use crate::gpu::alpha::mark_alpha_triangles;
 use crate::gpu::gpu_inputs;
 use crate::light::mask_channel_visibility;
 use crate::oracle::{ViewSample, ViewSamples};
@@ -74,9 +73,7 @@ impl Engine {
         let eye = desc.camera.eye;
         let t = Instant::now();
         let (_, mut gpu_tris) = gpu_inputs(&[], &gpu_triangles(&desc.scene, eye));
-        let (alpha, _) = self.alpha.get(&desc.scene);
-        mark_alpha_triangles(&mut gpu_tris, alpha);
-        self.shadows.set_alpha(&self.ctx, alpha)?;
+        self.set_scene_alpha(&desc.scene, &mut gpu_tris)?;
 
         // 1. View samples: rasterized on the GPU, exact ray-plane positions.
         let alpha = match self.shadows.alpha() {

@@ -36,7 +36,6 @@
 use super::inputs::frame_light;
 use super::Engine;
 use crate::cpu::light_view::LightView;
-use crate::gpu::alpha::mark_alpha_triangles;
 use crate::gpu::gpu_inputs;
 use crate::gpu::shared::{GpuViewSample, LightPush};
 use crate::gpu::soft_light::{SoftLight, SoftMode};
@@ -179,9 +178,7 @@ impl Engine {
         let eye = desc.camera.eye;
         let lights = frame_lights(desc)?;
         let (_, mut tris) = gpu_inputs(&[], &gpu_triangles(&desc.scene, eye));
-        let (alpha, _) = self.alpha.get(&desc.scene);
-        mark_alpha_triangles(&mut tris, alpha);
-        self.shadows.set_alpha(&self.ctx, alpha)?;
+        self.set_scene_alpha(&desc.scene, &mut tris)?;
         let any_alpha = self.shadows.alpha().1;
         self.view
             .prepare_for_caller(&self.ctx, &desc.camera, &tris, any_alpha)?;
