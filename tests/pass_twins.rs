@@ -7,7 +7,7 @@
 //! (`cpu::resolve`). The passes keep their buffers across frames, so the
 //! test reads them where the run left them.
 
-use alias_free_shadows::cpu::clusters::{block_boxes, tile_boxes, ClusterLight};
+use alias_free_shadows::cpu::clusters::{block_boxes, tile_boxes, ClusterLight, TileBox};
 use alias_free_shadows::cpu::light_view::{fit_windows, LightView};
 use alias_free_shadows::cpu::resolve::{resolve_hard, resolve_soft};
 use alias_free_shadows::cpu::texel_lists::{build_texel_lists, tile_occupancy, NOT_LISTED};
@@ -169,6 +169,22 @@ fn check_hard_passes(
 /// twins (fed the GPU's lists and pairs); returns (pairs, binned pairs,
 /// bins the twin dropped by blocks of tiles).
 /// Hard shadows (`light` not a sphere) get no boxes.
+/// The GPU's boxes (lo with w = 1 when valid, hi) against the twin's, bit
+/// for bit; `what` names them in the messages.
+fn assert_boxes_equal(gpu: &[[f32; 4]], twin: &[Option<TileBox>], what: &str) {
+    for (k, b) in twin.iter().enumerate() {
+        let (lo, hi) = (gpu[2 * k], gpu[2 * k + 1]);
+        assert_eq!(lo[3] == 1.0, b.is_some(), "{what} {k}: box validity");
+        if let Some(b) = b {
+            assert_eq!(
+                [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]].map(f32::to_bits),
+                [b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z].map(f32::to_bits),
+                "{what} {k}: box"
+            );
+        }
+    }
+}
+
 fn check_bins(
     ctx: &GpuContext,
     pipeline: &ShadowPipeline,
@@ -192,17 +208,7 @@ fn check_bins(
         false => vec![None; tiles],
     };
     let gpu_boxes: Vec<[f32; 4]> = read(ctx, &passes.clusters.boxes, 2 * tiles);
-    for (t, b) in boxes.iter().enumerate() {
-        let (lo, hi) = (gpu_boxes[2 * t], gpu_boxes[2 * t + 1]);
-        assert_eq!(lo[3] == 1.0, b.is_some(), "tile {t}: box validity");
-        if let Some(b) = b {
-            assert_eq!(
-                [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]].map(f32::to_bits),
-                [b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z].map(f32::to_bits),
-                "tile {t}: box"
-            );
-        }
-    }
+    assert_boxes_equal(&gpu_boxes, &boxes, "tile");
     let occupied: Vec<bool> = (0..tiles)
         .map(|t| counts[t * 64..(t + 1) * 64].iter().any(|&c| c > 0))
         .collect();
@@ -210,17 +216,7 @@ fn check_bins(
     if soft {
         let gpu_blocks: Vec<[f32; 4]> =
             read(ctx, &passes.clusters.boxes, 2 * (tiles + blocks.len()));
-        for (k, b) in blocks.iter().enumerate() {
-            let (lo, hi) = (gpu_blocks[2 * (tiles + k)], gpu_blocks[2 * (tiles + k) + 1]);
-            assert_eq!(lo[3] == 1.0, b.is_some(), "block {k}: box validity");
-            if let Some(b) = b {
-                assert_eq!(
-                    [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]].map(f32::to_bits),
-                    [b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z].map(f32::to_bits),
-                    "block {k}: box"
-                );
-            }
-        }
+        assert_boxes_equal(&gpu_blocks[2 * tiles..], &blocks, "block");
     }
     let c: Vec<u32> = read(ctx, &passes.counters, counter::COUNT);
     let pair_count = c[counter::PAIRS] as usize;

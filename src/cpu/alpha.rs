@@ -535,19 +535,23 @@ mod tests {
         }
     }
 
+    /// The index of the fence's alpha-tested mesh.
+    fn alpha_tested_mesh(scene: &crate::scene::Scene) -> usize {
+        scene
+            .meshes
+            .iter()
+            .position(|m| {
+                m.material
+                    .is_some_and(|k| scene.materials[k].alpha_test().is_some())
+            })
+            .expect("the fence is alpha-tested")
+    }
+
     #[test]
     fn tables_equal_the_per_triangle_build() {
         let mut scene = crate::scene::builtin::builtin("fence").unwrap().scene;
         let demo = crate::scene::builtin::builtin("demo").unwrap().scene;
-        let fence = scene
-            .meshes
-            .iter()
-            .find(|m| {
-                m.material
-                    .is_some_and(|k| scene.materials[k].alpha_test().is_some())
-            })
-            .cloned()
-            .expect("the fence is alpha-tested");
+        let fence = scene.meshes[alpha_tested_mesh(&scene)].clone();
         // Opaque meshes between alpha-tested ones; a tested mesh without
         // triangles; one whose coordinates miss a corner (opaque: the test
         // needs them); copies whose coordinates read a few texels at spots
@@ -599,14 +603,7 @@ mod tests {
     #[test]
     fn the_cache_rebuilds_exactly_when_an_input_changes() {
         let scene = crate::scene::builtin::builtin("fence").unwrap().scene;
-        let tested = scene
-            .meshes
-            .iter()
-            .position(|m| {
-                m.material
-                    .is_some_and(|k| scene.materials[k].alpha_test().is_some())
-            })
-            .expect("the fence is alpha-tested");
+        let tested = alpha_tested_mesh(&scene);
         let mut cache = AlphaTablesCache::default();
         let check = |cache: &mut AlphaTablesCache, scene: &Scene, reused: bool, what: &str| {
             let (tables, same) = cache.get(scene);
