@@ -13,7 +13,8 @@
 // by groups of 16, each group first as a sphere against the four planes),
 // or (SURE, the default mode: the masks of EXACT, all blocks in one pass)
 // the table bounds each plane's bits from both sides and only the bits it
-// leaves unsure are tested as EXACT tests them (see SURE_BLOCK).
+// leaves unsure are tested as EXACT tests them (see SURE_BLOCK): here, in
+// the opaque round with one block, else by soft_occlusion_unsure.comp.
 // The OR over casters goes into x's mask with one atomic OR per word; a
 // sample whose every light sample is blocked stops early. Closed meshes
 // block only light samples behind their oriented plane (the back-face rule
@@ -276,9 +277,10 @@ uvec4 past_end(uint block) {
 // "every" is blocked by that plane as the exact test sees it, and outside
 // "some" it is not. Over the four planes: `sure` is blocked, `maybe`
 // possibly; bits earlier casters blocked are left out (the OR does not need them
-// again), and the pair's unsure bits go to a list that
-// soft_occlusion_unsure.comp tests exactly. Nothing is tested here: on
-// lavapipe every branch's code runs for every lane, tested or not.
+// again), and the pair's unsure bits are left to the exact test (main()'s
+// loop over them, or the list that soft_occlusion_unsure.comp tests).
+// Nothing is tested here: on lavapipe every branch's code runs for every
+// lane, tested or not.
 #define SURE_BLOCK(K)                                                        \
     uvec4 unsure##K;                                                         \
     {                                                                        \
@@ -737,6 +739,32 @@ void main() {
                 // and pair (lavapipe serializes per-lane atomics), and the
                 // writes in a loop that runs as often as the most blocks
                 // any lane has (a masked write costs as much as a real one).
+#if BLOCKS == 1
+                // Up to 128 light samples, opaque round: the unsure bits are
+                // tested here, as the unsure pass tests them (the same
+                // planes, exact_blocks), in a loop that runs as often as the
+                // most bits any lane has; nothing is listed. A sample they
+                // block wholly stops at once, and the list's code leaves the
+                // loop (lavapipe pays for the code a loop holds, run or
+                // not). The alpha round and more blocks keep the list
+                // (opacity look-ups per bit; lanes' bits spread over blocks).
+                // Measured in status.md, stop 51.
+                uvec4 left = ALPHA == 0u ? unsure0 : uvec4(0u);
+                unsure_blocks = ALPHA == 0u ? 0u : unsure_blocks;
+                uint first_sample = first_block * 128u;
+                while (any(notEqual(left, uvec4(0u)))) {
+                    uint w = left.x != 0u ? 0u : (left.y != 0u ? 1u : (left.z != 0u ? 2u : 3u));
+                    uint word = w == 0u ? left.x : (w == 1u ? left.y : (w == 2u ? left.z : left.w));
+                    uint bit = uint(findLSB(word));
+                    uint rest = word & (word - 1u);
+                    left = uvec4(w == 0u ? rest : left.x, w == 1u ? rest : left.y,
+                                 w == 2u ? rest : left.z, w == 3u ? rest : left.w);
+                    vec3 l = texelFetch(light_samples_tb, int(first_sample + w * 32u + bit)).xyz;
+                    bool blocked = exact_blocks(l, p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
+                    acc0 |= in_word(w, blocked ? 1u << bit : 0u);
+                    hit = hit || blocked;
+                }
+#endif
                 uint entries = uint(bitCount(unsure_blocks));
                 listed += entries;
                 uint total = subgroupAdd(entries);
