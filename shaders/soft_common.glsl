@@ -100,6 +100,19 @@ uint lut_normal_cell(vec3 n, uint res, out vec3 centre) {
     return uint(c.y) * res + uint(c.x);
 }
 
+// Takes the lowest set bit out of a 128-bit mask (words x..w, not all
+// zero): its word, and its bit in that word (selects, not an indexed
+// write: lavapipe keeps locals in registers).
+uint take_lowest_bit(inout uvec4 left, out uint w) {
+    w = left.x != 0u ? 0u : (left.y != 0u ? 1u : (left.z != 0u ? 2u : 3u));
+    uint word = w == 0u ? left.x : (w == 1u ? left.y : (w == 2u ? left.z : left.w));
+    uint bit = uint(findLSB(word));
+    uint rest = word & (word - 1u);
+    left = uvec4(w == 0u ? rest : left.x, w == 1u ? rest : left.y,
+                 w == 2u ? rest : left.z, w == 3u ? rest : left.w);
+    return bit;
+}
+
 // The exact per-sample test (exact mode, and the look-up mode's unsure
 // bits): whether caster (a, b, c) hides light sample l from x, with the
 // caster's normal n = cross(b - a, c - a), sigma the side of x

@@ -734,11 +734,6 @@ void main() {
                 sure_texels(p.u2, p.d3, res, le3, ls3, lf3);
                 uint unsure_blocks = 0u;
                 FOR_BLOCKS(SURE_BLOCK)
-                // The pair's entries, one per block with unsure bits, after
-                // the subgroup's lanes before it: one atomic per subgroup
-                // and pair (lavapipe serializes per-lane atomics), and the
-                // writes in a loop that runs as often as the most blocks
-                // any lane has (a masked write costs as much as a real one).
 #if BLOCKS == 1
                 // Up to 128 light samples, opaque round: the unsure bits are
                 // tested here, as the unsure pass tests them (the same
@@ -753,18 +748,19 @@ void main() {
                 unsure_blocks = ALPHA == 0u ? 0u : unsure_blocks;
                 uint first_sample = first_block * 128u;
                 while (any(notEqual(left, uvec4(0u)))) {
-                    uint w = left.x != 0u ? 0u : (left.y != 0u ? 1u : (left.z != 0u ? 2u : 3u));
-                    uint word = w == 0u ? left.x : (w == 1u ? left.y : (w == 2u ? left.z : left.w));
-                    uint bit = uint(findLSB(word));
-                    uint rest = word & (word - 1u);
-                    left = uvec4(w == 0u ? rest : left.x, w == 1u ? rest : left.y,
-                                 w == 2u ? rest : left.z, w == 3u ? rest : left.w);
+                    uint w;
+                    uint bit = take_lowest_bit(left, w);
                     vec3 l = texelFetch(light_samples_tb, int(first_sample + w * 32u + bit)).xyz;
                     bool blocked = exact_blocks(l, p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
                     acc0 |= in_word(w, blocked ? 1u << bit : 0u);
                     hit = hit || blocked;
                 }
 #endif
+                // The pair's entries, one per block with unsure bits, after
+                // the subgroup's lanes before it: one atomic per subgroup
+                // and pair (lavapipe serializes per-lane atomics), and the
+                // writes in a loop that runs as often as the most blocks
+                // any lane has (a masked write costs as much as a real one).
                 uint entries = uint(bitCount(unsure_blocks));
                 listed += entries;
                 uint total = subgroupAdd(entries);

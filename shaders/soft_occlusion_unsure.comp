@@ -67,12 +67,8 @@ void main() {
     uvec4 left = unsure;
     uvec4 got = uvec4(0u);
     while (any(notEqual(left, uvec4(0u)))) {
-        uint w = left.x != 0u ? 0u : (left.y != 0u ? 1u : (left.z != 0u ? 2u : 3u));
-        uint word = w == 0u ? left.x : (w == 1u ? left.y : (w == 2u ? left.z : left.w));
-        uint bit = uint(findLSB(word));
-        uint rest = word & (word - 1u);
-        left = uvec4(w == 0u ? rest : left.x, w == 1u ? rest : left.y,
-                     w == 2u ? rest : left.z, w == 3u ? rest : left.w);
+        uint w;
+        uint bit = take_lowest_bit(left, w);
         vec3 l = texelFetch(light_samples_tb, int(block * 128u + w * 32u + bit)).xyz;
         bool blocked = exact_blocks(l, n, sigma, a, x, m0, m1, m2, se);
         if (blocked) {
@@ -88,12 +84,8 @@ void main() {
         left = got;
         got = uvec4(0u);
         while (any(notEqual(left, uvec4(0u)))) {
-            uint w = left.x != 0u ? 0u : (left.y != 0u ? 1u : (left.z != 0u ? 2u : 3u));
-            uint word = w == 0u ? left.x : (w == 1u ? left.y : (w == 2u ? left.z : left.w));
-            uint bit = uint(findLSB(word));
-            uint rest = word & (word - 1u);
-            left = uvec4(w == 0u ? rest : left.x, w == 1u ? rest : left.y,
-                         w == 2u ? rest : left.z, w == 3u ? rest : left.w);
+            uint w;
+            uint bit = take_lowest_bit(left, w);
             vec3 l = texelFetch(light_samples_tb, int(block * 128u + w * 32u + bit)).xyz;
             vec2 bc = segment_barycentrics(x, l - x, a, b, c);
             if (alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, c_record.w, bc)) {

@@ -8,8 +8,8 @@
 //! unsure are tested exactly: the masks of exact mode. With one block (up
 //! to 128 samples) the opaque round tests them in its own loop; the alpha
 //! round and more blocks send them to a list that
-//! `soft_occlusion_unsure.comp` tests. Shader `soft_occlusion.comp`, compiled once per
-//! mode and block count (`build.rs`). CPU twin:
+//! `soft_occlusion_unsure.comp` tests. Shader `soft_occlusion.comp`,
+//! compiled once per mode and block count (`build.rs`). CPU twin:
 //! [`crate::cpu::soft_occlusion`].
 
 use crate::gpu::clusters::ClusterPass;
