@@ -451,13 +451,12 @@ PairTexels shuffle_pair(PairTexels f, uint lane) {
 // supporting plane facing x (ns, d0) and the planes
 // through x and each edge (u0..u2, d1..d3), in light radii from the
 // light's centre o; x and the caster are turned back by `turn_back`.
-uint pair_planes_of(PairTexels f, uvec2 texel, uint own, vec3 x, vec3 o, float inv_r, vec3 ox,
-                    float lo_x, mat3 turn_back, out PairPlanes p) {
+// In two parts: pair_culled, the per-lane culls that need only the
+// caster's plane (true: PAIR_CULLED), then pair_tail for the rest, so
+// that the first loop can skip the tail where every lane culls the pair.
+bool pair_culled(PairTexels f, uvec2 texel, uint own, vec3 x, mat3 turn_back, out PairPlanes p) {
     p.ids = f.ids;
     uvec4 ids = p.ids;
-    if (!pair_meets(ids, texel, texel) || own == global_triangle(ids.x)) {
-        return PAIR_CULLED; // outside the influence region, or the sample's own triangle
-    }
     uvec4 t0 = f.t0;
     vec3 a = uintBitsToFloat(t0.xyz);
     vec3 b = uintBitsToFloat(f.t1.xyz);
@@ -475,16 +474,21 @@ uint pair_planes_of(PairTexels f, uvec2 texel, uint own, vec3 x, vec3 o, float i
     vec3 n = cross(b - a, c - a);
     p.n = n;
     float sx = dot(n, x - a);
+    p.sigma = sx > 0.0 ? 1.0 : -1.0;
     bool closed = (t0.w & TRIANGLE_CLOSED) != 0u;
-    // x on the plane: the segment does not cross it; x behind a
-    // closed caster: only its front faces could block, and they do not cast.
-    if (sx == 0.0 || isnan(sx) || (closed && sx < 0.0)) {
-        return PAIR_CULLED;
-    }
-    float sigma = sx > 0.0 ? 1.0 : -1.0;
-    p.sigma = sigma;
+    // Outside the influence region, or the sample's own triangle; x on
+    // the plane: the segment does not cross it; x behind a closed
+    // caster: only its front faces could block, and they do not cast.
+    return !pair_meets(ids, texel, texel) || own == global_triangle(ids.x)
+        || sx == 0.0 || isnan(sx) || (closed && sx < 0.0);
+}
+
+// The rest of a pair that pair_culled kept: PAIR_PLANE_REJECTED,
+// PAIR_EDGE_REJECTED or PAIR_PASSED.
+uint pair_tail(vec3 x, vec3 o, float inv_r, vec3 ox, float lo_x, inout PairPlanes p) {
+    vec3 a = p.a, b = p.b, c = p.c, n = p.n;
     // The supporting plane, facing x: light samples behind it.
-    vec3 ns = (sigma * inversesqrt(dot(n, n))) * n;
+    vec3 ns = (p.sigma * inversesqrt(dot(n, n))) * n;
     p.ns = ns;
     vec3 ao = a - o;
     p.d0 = dot(ns, ao) * inv_r;
@@ -507,6 +511,11 @@ uint pair_planes_of(PairTexels f, uvec2 texel, uint own, vec3 x, vec3 o, float i
     p.u2 = (-se * inversesqrt(dot(m2, m2))) * m2;
     p.d3 = dot(p.u2, ox) * inv_r;
     return p.d1 > lo_x && p.d2 > lo_x && p.d3 > lo_x ? PAIR_PASSED : PAIR_EDGE_REJECTED;
+}
+
+uint pair_planes_of(PairTexels f, uvec2 texel, uint own, vec3 x, vec3 o, float inv_r, vec3 ox,
+                    float lo_x, mat3 turn_back, out PairPlanes p) {
+    return pair_culled(f, texel, own, x, turn_back, p) ? PAIR_CULLED : pair_tail(x, o, inv_r, ox, lo_x, p);
 }
 
 // The wedge rule (a separating plane from two of the edges' planes): the
@@ -659,15 +668,21 @@ void main() {
                     meeting &= meeting - 1u;
                     uint j = j0 + jj;
                     PairPlanes p;
-                    uint rule = pair_planes_of(shuffle_pair(fetched, jj), texel, qb.w, x, o,
-                                               inv_r, ox, lo_x, turn_back, p);
+                    bool culled = pair_culled(shuffle_pair(fetched, jj), texel, qb.w, x, turn_back, p);
                     // The reach rule: culled, not a test.
-                    bool beyond = rule != PAIR_CULLED
-                        && beyond_reach(subgroupShuffle(sphere, jj), reach_x, REACH_MARGIN);
+                    bool beyond = !culled && beyond_reach(subgroupShuffle(sphere, jj), reach_x, REACH_MARGIN);
                     // The hull rule for x itself.
-                    bool outside_x = rule != PAIR_CULLED && !beyond
+                    bool outside_x = !culled && !beyond
                         && outside_hull(subgroupShuffle(ball, jj), x_seen, 0.0, HULL_MARGIN);
-                    rule = beyond || outside_x ? PAIR_CULLED : rule;
+                    // The planes' tail in a loop, not an `if`: lavapipe runs
+                    // an `if` body for every lane but skips a loop that no
+                    // lane enters, as where every lane culled the pair.
+                    uint rule = PAIR_CULLED;
+                    uint tail = culled || beyond || outside_x ? 0u : 1u;
+                    while (tail != 0u) {
+                        tail = 0u;
+                        rule = pair_tail(x, o, inv_r, ox, lo_x, p);
+                    }
                     if (!full) {
                         beyond_tests += beyond ? 1u : 0u;
                         hull_tests += outside_x ? 1u : 0u;
