@@ -574,11 +574,23 @@ void main() {
     // The subgroup's largest: a pair beyond it is one every lane culls
     // (beyond_reach grows with the reach), left out of the loop.
     float sg_reach = subgroupMax(un.has_sample ? reach_x : 0.0);
-    // The hull rule's ball of the subgroup's samples (any centre: its
-    // radius is measured from it), and x as seen (the pairs' frame, before
-    // any turn below).
-    vec3 sg_c = 0.5 * (subgroupMin(un.has_sample ? x : vec3(1.0 / 0.0)) + subgroupMax(un.has_sample ? x : vec3(-1.0 / 0.0)));
-    float sg_rho = subgroupMax(un.has_sample ? length(x - sg_c) : 0.0);
+    // The hull rule's balls of the subgroup's samples, two of them: its
+    // samples nearer the light than the middle of their distances (a) and
+    // the others (b). A subgroup can hold samples far apart in depth (a
+    // car's roof and the ground under it, in one texel), whose one ball
+    // culls little; a pair outside the hull of both balls is one that
+    // every lane culls. (Each ball's centre is any point: its radius is
+    // measured from it.)
+    float depth = length(x - pc.origin.xyz);
+    float split = 0.5 * (subgroupMin(un.has_sample ? depth : 1.0 / 0.0) + subgroupMax(un.has_sample ? depth : -1.0 / 0.0));
+    bool in_a = un.has_sample && depth <= split, in_b = un.has_sample && !in_a;
+    vec3 sg_ca = 0.5 * (subgroupMin(in_a ? x : vec3(1.0 / 0.0)) + subgroupMax(in_a ? x : vec3(-1.0 / 0.0)));
+    float sg_rhoa = subgroupMax(in_a ? length(x - sg_ca) : 0.0);
+    vec3 sg_cb = 0.5 * (subgroupMin(in_b ? x : vec3(1.0 / 0.0)) + subgroupMax(in_b ? x : vec3(-1.0 / 0.0)));
+    float sg_rhob = subgroupMax(in_b ? length(x - sg_cb) : 0.0);
+    bool any_a = subgroupBallotBitCount(subgroupBallot(in_a)) != 0u;
+    bool any_b = subgroupBallotBitCount(subgroupBallot(in_b)) != 0u;
+    // x as seen (the pairs' frame, before any turn below).
     vec3 x_seen = x;
     uint hull_tests = 0u;
     uint begin = 0u, end = kept;
@@ -658,9 +670,10 @@ void main() {
                 uint far = subgroupBallot(beyond_reach(sphere, sg_reach, REACH_MARGIN)).x & meeting;
                 meeting &= ~far;
                 beyond_tests += full ? 0u : uint(bitCount(far));
-                // The hull rule for the subgroup's ball (counted as each
-                // lane's culls).
-                uint outside = subgroupBallot(outside_hull(ball, sg_c, sg_rho, HULL_MARGIN_BOX)).x & meeting;
+                // The hull rule for the subgroup's two balls (counted as
+                // each lane's culls).
+                uint outside = subgroupBallot((!any_a || outside_hull(ball, sg_ca, sg_rhoa, HULL_MARGIN_BOX))
+                                              && (!any_b || outside_hull(ball, sg_cb, sg_rhob, HULL_MARGIN_BOX))).x & meeting;
                 meeting &= ~outside;
                 hull_tests += full ? 0u : uint(bitCount(outside));
                 while (meeting != 0u) {
