@@ -132,7 +132,7 @@ impl<'a> ContainmentGrid<'a> {
     /// A triangle that the ray from `p` crosses has `p`'s shadow inside
     /// its own, up to the crossing test's rounding: at most a few ulps of
     /// `|p - a|·|e1|·|e2| / |det|`, under 1e-9 of the coordinates' size
-    /// when `|det|` is at least [`PARALLEL`] of `|e1|·|e2|` (the nearly
+    /// when `|det|` is at least 1e-6 of `|e1|·|e2|` (the nearly
     /// parallel rest is tested for every point). The padding is 1e-6 of
     /// that size, so every such triangle is binned in `p`'s cell.
     pub fn contains(&self, p: DVec3) -> bool {
