@@ -518,6 +518,21 @@ uint pair_planes_of(PairTexels f, uvec2 texel, uint own, vec3 x, vec3 o, float i
     return pair_culled(f, texel, own, x, turn_back, p) ? PAIR_CULLED : pair_tail(x, o, inv_r, ox, lo_x, p);
 }
 
+// The ball of the subgroup's samples whose lanes are `member`: centre
+// (xyz; any point, the radius is measured from it) and radius (w), or
+// w < 0 where no lane is a member.
+vec4 subgroup_ball(bool member, vec3 x) {
+    vec3 c = 0.5 * (subgroupMin(member ? x : vec3(1.0 / 0.0)) + subgroupMax(member ? x : vec3(-1.0 / 0.0)));
+    return vec4(c, subgroupMax(member ? length(x - c) : -1.0));
+}
+
+// Whether the caster's ball lies outside the hull of the subgroup's ball
+// `sb` (subgroup_ball) and the light's; true for no ball (no sample
+// needs the caster).
+bool outside_ball_hull(vec4 ball, vec4 sb) {
+    return sb.w < 0.0 || outside_hull(ball, sb.xyz, sb.w, HULL_MARGIN_BOX);
+}
+
 // The wedge rule (a separating plane from two of the edges' planes): the
 // light samples y (light radii from its centre, |y| <= 1) that the exact
 // test can find behind planes (u_i, d_i) and (u_j, d_j) satisfy
@@ -583,13 +598,8 @@ void main() {
     // measured from it.)
     float depth = length(x - pc.origin.xyz);
     float split = 0.5 * (subgroupMin(un.has_sample ? depth : 1.0 / 0.0) + subgroupMax(un.has_sample ? depth : -1.0 / 0.0));
-    bool in_a = un.has_sample && depth <= split, in_b = un.has_sample && !in_a;
-    vec3 sg_ca = 0.5 * (subgroupMin(in_a ? x : vec3(1.0 / 0.0)) + subgroupMax(in_a ? x : vec3(-1.0 / 0.0)));
-    float sg_rhoa = subgroupMax(in_a ? length(x - sg_ca) : 0.0);
-    vec3 sg_cb = 0.5 * (subgroupMin(in_b ? x : vec3(1.0 / 0.0)) + subgroupMax(in_b ? x : vec3(-1.0 / 0.0)));
-    float sg_rhob = subgroupMax(in_b ? length(x - sg_cb) : 0.0);
-    bool any_a = subgroupBallotBitCount(subgroupBallot(in_a)) != 0u;
-    bool any_b = subgroupBallotBitCount(subgroupBallot(in_b)) != 0u;
+    bool in_a = un.has_sample && depth <= split;
+    vec4 sg_ball_a = subgroup_ball(in_a, x), sg_ball_b = subgroup_ball(un.has_sample && !in_a, x);
     // x as seen (the pairs' frame, before any turn below).
     vec3 x_seen = x;
     uint hull_tests = 0u;
@@ -672,8 +682,7 @@ void main() {
                 beyond_tests += full ? 0u : uint(bitCount(far));
                 // The hull rule for the subgroup's two balls (counted as
                 // each lane's culls).
-                uint outside = subgroupBallot((!any_a || outside_hull(ball, sg_ca, sg_rhoa, HULL_MARGIN_BOX))
-                                              && (!any_b || outside_hull(ball, sg_cb, sg_rhob, HULL_MARGIN_BOX))).x & meeting;
+                uint outside = subgroupBallot(outside_ball_hull(ball, sg_ball_a) && outside_ball_hull(ball, sg_ball_b)).x & meeting;
                 meeting &= ~outside;
                 hull_tests += full ? 0u : uint(bitCount(outside));
                 while (meeting != 0u) {
