@@ -120,7 +120,7 @@ struct LightPush {
                        // w: soft occlusion, look-up mode: the dispatch's first work unit
     vec4 soft_light;   // x: light bounding radius R (light samples within R of origin), y: influence polygon degree,
                        // z: global id of this run's triangle 0 (uint bits; triangle batches),
-                       // w: look-up mode's rounding allowance LUT_ROUNDING, in light radii (soft_occlusion.comp)
+                       // w: look-up mode's largest rounding allowance LUT_ALLOWANCE_CAP, in light radii (soft_occlusion.comp)
 };
 
 // One light face: basis and fitted window (written by light_view_finalize).

@@ -14,7 +14,8 @@
 // or (SURE, the default mode: the masks of EXACT, all blocks in one pass)
 // the table bounds each plane's bits from both sides and only the bits it
 // leaves unsure are tested as EXACT tests them (see SURE_BLOCK): here, in
-// the opaque round with one block, else by soft_occlusion_unsure.comp.
+// the opaque round with one block (within IN_PLACE_BUDGET), else by
+// soft_occlusion_unsure.comp.
 // The OR over casters goes into x's mask with one atomic OR per word; a
 // sample whose every light sample is blocked stops early. Closed meshes
 // block only light samples behind their oriented plane (the back-face rule
@@ -144,6 +145,12 @@ layout(set = 0, binding = 17) uniform usamplerBuffer list_sample_index_tb; // pe
 #endif
 #include "soft_occlusion_units.glsl"
 
+// The unsure bits that one invocation may test in place (one block, the
+// opaque round). Its other loops run at most about 2.8 K iterations (five
+// per kept pair, MAX_KEPT of them, and the windows', groups', compaction's
+// and searches'), so all of them stay below lavapipe's 65535.
+#define IN_PLACE_BUDGET 49152u
+
 #define LUT_ALL 0xffffffffu
 #define LUT_NONE 0xfffffffeu
 
@@ -181,13 +188,13 @@ float sphere_allowance(vec3 v, float inv_r) {
 // SURE mode: the table's planes that bound caster plane (u, d) in u's
 // normal cell (centre n_t): `te` at or below d - delta, `ts` at or above
 // d + delta (texel indices, without the block), delta bounding
-// |(u - n_t).y| over |y| <= 1 plus the rounding allowance (soft_light.w)
-// and SURE_SLACK, and the flags where no plane does. Twin:
-// plane_lut::sure_texels.
-void sure_texels(vec3 u, float d, uint res, out uint te, out uint ts, out uint flags) {
+// |(u - n_t).y| over |y| <= 1 plus the pair's rounding allowance `allow`
+// (the per-sample test's rounding bound) and SURE_SLACK, and the flags
+// where no plane does. Twin: plane_lut::sure_texels.
+void sure_texels(vec3 u, float d, uint res, float allow, out uint te, out uint ts, out uint flags) {
     vec3 centre;
     uint cell = lut_normal_cell(u, res, centre);
-    float delta = length(u - centre) * (1.0 + 1e-5) + pc.soft_light.w + SURE_SLACK;
+    float delta = length(u - centre) * (1.0 + 1e-5) + allow + SURE_SLACK;
     float lo = d - delta, hi = d + delta;
     float half_res = 0.5 * float(res);
     float ke = floor((lo + 1.0) * half_res);
@@ -273,7 +280,7 @@ uvec4 past_end(uint block) {
 // d - delta, so u.y < d - (rounding allowance), and outside its plane
 // above (n_t, d_s) only samples with u.y >= d + (allowance) (sure_texels);
 // the exact per-sample test differs from "u.y < d" by at most the pair's
-// rounding bound (delta_a, delta_x) when that is within the allowance: so
+// rounding bound (through a and through x), which is the allowance: so
 // "every" is blocked by that plane as the exact test sees it, and outside
 // "some" it is not. Over the four planes: `sure` is blocked, `maybe`
 // possibly; bits earlier casters blocked are left out (the OR does not need them
@@ -569,6 +576,9 @@ void main() {
     uint s = un.slot;
     uvec2 texel = un.texel;
     uint tests = 0u, blocking = 0u, unsure_bits = 0u, listed = 0u, past_sphere = 0u, wedge_rejected = 0u;
+#if SURE && BLOCKS == 1
+    uint in_place_left = IN_PLACE_BUDGET;
+#endif
     // Exact mode: light-sample groups tested sample by sample, and groups
     // wholly blocked without a per-sample test.
     uint groups_tested = 0u, groups_every = 0u;
@@ -761,14 +771,19 @@ void main() {
                 pair_planes(kept_pairs[w0 + j], texel, qb.w, x, o, inv_r, ox, lo_x, turn_back, p);
                 bool hit = false;
 #if SURE
-                float delta_a = rounding_bound(p.a, o, inv_r);
-                bool rounding_too_large = max(delta_a, delta_x) > pc.soft_light.w;
+                // The pair's own rounding bound is its allowance: a small
+                // light (far from the camera for its size) widens each
+                // plane's unsure band by that much instead of leaving every
+                // bit unsure under one fixed allowance. Past the largest
+                // allowance (soft_light.w; or not a number) every bit is.
+                float allow = max(rounding_bound(p.a, o, inv_r), delta_x);
+                bool rounding_too_large = !(allow <= pc.soft_light.w);
                 uint res = pc.soft.z;
                 uint le0, ls0, lf0, le1, ls1, lf1, le2, ls2, lf2, le3, ls3, lf3;
-                sure_texels(p.ns, p.d0, res, le0, ls0, lf0);
-                sure_texels(p.u0, p.d1, res, le1, ls1, lf1);
-                sure_texels(p.u1, p.d2, res, le2, ls2, lf2);
-                sure_texels(p.u2, p.d3, res, le3, ls3, lf3);
+                sure_texels(p.ns, p.d0, res, allow, le0, ls0, lf0);
+                sure_texels(p.u0, p.d1, res, allow, le1, ls1, lf1);
+                sure_texels(p.u1, p.d2, res, allow, le2, ls2, lf2);
+                sure_texels(p.u2, p.d3, res, allow, le3, ls3, lf3);
                 uint unsure_blocks = 0u;
                 FOR_BLOCKS(SURE_BLOCK)
 #if BLOCKS == 1
@@ -780,9 +795,17 @@ void main() {
                 // loop (lavapipe pays for the code a loop holds, run or
                 // not). The alpha round and more blocks keep the list
                 // (opacity look-ups per bit; lanes' bits spread over blocks).
-                // Measured in status.md, stop 51.
-                uvec4 left = ALPHA == 0u ? unsure0 : uvec4(0u);
-                unsure_blocks = ALPHA == 0u ? 0u : unsure_blocks;
+                // Measured in status.md, stop 51. Past IN_PLACE_BUDGET bits
+                // in this invocation a pair's bits are listed after all:
+                // lavapipe silently ends an invocation's loops after 65535
+                // iterations in all, and a unit's 512 pairs with 128 unsure
+                // bits each would pass that (a light small for its
+                // distance leaves every bit unsure).
+                uint pair_unsure = bit_count(unsure0);
+                bool in_place = ALPHA == 0u && pair_unsure <= in_place_left;
+                in_place_left -= in_place ? pair_unsure : 0u;
+                uvec4 left = in_place ? unsure0 : uvec4(0u);
+                unsure_blocks = in_place ? 0u : unsure_blocks;
                 uint first_sample = first_block * 128u;
                 while (any(notEqual(left, uvec4(0u)))) {
                     uint w;

@@ -322,3 +322,166 @@ fn unsure_list_ranges_equal_one_range() {
     }
     engine.context().check_validation().unwrap();
 }
+
+/// A light tiny for its distance (radius 1e-5 at 2 units): each pair's
+/// rounding bound (64 f32 ulps of the test's magnitudes, per light radius)
+/// passes the largest allowance, so every bit a pair leaves is unsure and
+/// tested exactly. Hundreds of casters pass the sphere rules (their cones
+/// miss the light by less than the rules' rounding allowance) and block
+/// nothing, so one invocation meets more unsure bits than lavapipe's 65535
+/// loop iterations allow; past its budget it lists them for the unsure
+/// pass instead. A few casters block a few light samples each, in any
+/// order among the others: the masks must still be exact mode's.
+#[test]
+fn tiny_light_past_the_in_place_budget_stays_exact() {
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    // One block of light samples (tested in place bit by bit) and eight
+    // (block by block).
+    for samples in [128, 1024] {
+        tiny_light_case(&mut engine, samples);
+    }
+    engine.context().check_validation().unwrap();
+}
+
+fn tiny_light_case(engine: &mut Engine, light_samples: u32) {
+    use alias_free_shadows::light::LightSamples;
+    use alias_free_shadows::oracle::ViewSample;
+    use alias_free_shadows::scene::{Mesh, Scene};
+    let eye = DVec3::new(0.0, 1.0, 0.01);
+    let centre = DVec3::new(0.0, 2.0, 0.0);
+    let radius = 1e-5;
+    let demo = load_scene("builtin:demo", 16).unwrap();
+    let light = Light {
+        shape: LightShape::Sphere {
+            position: centre,
+            radius,
+        },
+        samples: light_samples,
+        per_pixel_rotation: false,
+        ..demo.lights[0].clone()
+    };
+    let LightSamples::Positions(ls) = light.light_samples() else {
+        unreachable!("a sphere has positions")
+    };
+    // A horizontal triangle at height h whose cone from the origin is
+    // centred on `target` (near the light) and `size` across there.
+    let caster = |target: DVec3, size: f64, h: f64, turn: f64| {
+        let c = target * (h / target.y);
+        let s = size * h / target.y;
+        let v = |a: f64| c + s * DVec3::new((turn + a).cos(), 0.0, (turn + a).sin());
+        [v(0.0), v(2.1), v(4.2)]
+    };
+    let mut tris = Vec::new();
+    for k in 0..1500 {
+        let t = k as f64 * 0.618_034;
+        let side = DVec3::new((6.283 * t).cos(), 0.0, (6.283 * t).sin());
+        tris.push(caster(
+            centre + 1.6 * radius * side,
+            0.3 * radius,
+            0.8 + 0.4 * (t * 7.1).fract(),
+            t,
+        ));
+    }
+    for j in 0..12 {
+        let k = 300 + 100 * j + 37 * (j % 3);
+        tris.insert(
+            k,
+            caster(ls[(j * 11) % ls.len()], 0.08 * radius, 1.0, j as f64),
+        );
+    }
+    let positions: Vec<DVec3> = tris.iter().flatten().copied().collect();
+    let faces = (0..tris.len() as u32)
+        .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+        .collect();
+    let mut mesh = Mesh::new("casters", positions, faces);
+    mesh.closed = false;
+    let scene = Scene {
+        meshes: vec![mesh],
+        ..Default::default()
+    };
+    let samples: Vec<Option<ViewSample>> = (0..16)
+        .map(|i| {
+            let p = DVec3::new((i % 4) as f64, 0.0, (i / 4) as f64) * 1e-7;
+            Some(ViewSample::user(p, DVec3::Y))
+        })
+        .collect();
+    let run = |engine: &mut Engine, mode| {
+        let settings = ShadowSettings {
+            mode,
+            ..Default::default()
+        };
+        engine
+            .soft_shadows(&scene, eye, &samples, &light, &settings)
+            .unwrap()
+    };
+    let lut = run(engine, SoftMode::Lut);
+    let exact = run(engine, SoftMode::Exact);
+    let blocked: u32 = exact.visible.iter().map(|w| (!w).count_ones()).sum();
+    let s = lut.stats.soft.as_ref().unwrap();
+    let differ = words_differ(&lut.visible, &exact.visible);
+    eprintln!(
+        "{light_samples} light samples: {} blocked over {} view samples; {} unsure bits, {} listed entries; {differ} mask words differ",
+        blocked,
+        samples.len(),
+        s.unsure_bits,
+        s.unsure_entries
+    );
+    assert!(blocked > 0, "some light samples are blocked");
+    assert!(
+        exact.visible.iter().any(|&w| w != 0),
+        "some light samples are visible"
+    );
+    assert!(
+        s.unsure_bits > 65536,
+        "the case must pass an invocation's loop bound: {} unsure bits",
+        s.unsure_bits
+    );
+    assert!(
+        s.unsure_entries > 0,
+        "past the budget, unsure bits go to the list"
+    );
+    assert_eq!(differ, 0, "look-up and exact masks differ");
+    assert_eq!(lut.visibility, exact.visibility);
+}
+
+/// A light small for its distance (a 250th of it): each pair's rounding
+/// allowance is its own rounding bound, so the table still decides most
+/// bits (with one fixed allowance of 1e-3 light radii every bit of such a
+/// light was unsure: 14% of the tested bits on the demo at 256², against
+/// 0.2%), and the masks stay exact mode's.
+#[test]
+fn small_light_leaves_few_bits_unsure() {
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let desc = load_scene("builtin:demo", 64).unwrap();
+    let eye = desc.camera.eye;
+    let oracle = Oracle::new(&desc.scene.triangles(), eye);
+    let view = engine_view_samples(&oracle, &desc);
+    let sphere = bench_light(&desc, 128).unwrap();
+    let LightShape::Sphere { position, radius } = sphere.shape else {
+        unreachable!("the bench light is a sphere")
+    };
+    let light = Light {
+        shape: LightShape::Sphere {
+            position,
+            radius: radius / 25.0,
+        },
+        ..sphere
+    };
+    let lut = soft_in_mode(&mut engine, &desc, &view, &light, SoftMode::Lut);
+    let exact = soft_in_mode(&mut engine, &desc, &view, &light, SoftMode::Exact);
+    let s = lut.stats.soft.as_ref().unwrap();
+    let differ = words_differ(&lut.visible, &exact.visible);
+    eprintln!(
+        "{} unsure bits ({:.2e} of the tested bits); {differ} mask words differ",
+        s.unsure_bits, s.unsure_share
+    );
+    assert!(s.unsure_bits > 0, "the case has planes near light samples");
+    assert!(
+        s.unsure_share < 0.02,
+        "the table leaves {:.3} of the tested bits unsure",
+        s.unsure_share
+    );
+    assert_eq!(differ, 0, "look-up and exact masks differ");
+    assert_eq!(lut.visibility, exact.visibility);
+    engine.context().check_validation().unwrap();
+}

@@ -98,13 +98,15 @@ pub fn build_lut(normalized: &[Vec3], res: u32) -> Vec<BlockBits> {
     lut
 }
 
-/// The look-up mode's allowance for the rounding of the exact per-sample
-/// test, in light radii: a pair whose rounding bound (64 f32 ulps of the
-/// magnitudes involved, per light radius) passes it has all its bits tested
-/// exactly instead (`soft_occlusion.comp`, `rounding_too_large`).
-pub const LUT_ROUNDING: f32 = 1e-3;
+/// The largest rounding allowance the look-up mode uses, in light radii.
+/// Each pair's allowance is its own rounding bound (64 f32 ulps of the
+/// magnitudes of the per-sample test, per light radius: larger for a light
+/// that is small for its distance); a pair past this one (or whose bound is
+/// not a number) has all its bits tested exactly instead
+/// (`soft_occlusion.comp`, `rounding_too_large`).
+pub const LUT_ALLOWANCE_CAP: f32 = 1.0;
 
-/// Slack of the look-up mode's table beyond [`LUT_ROUNDING`], in light
+/// Slack of the look-up mode's table beyond the rounding allowance, in light
 /// radii: the f32 rounding of the build's comparisons and planes (~1e-7),
 /// of the shader's choice of a plane (its floor and ceil, ~1e-6), and the
 /// difference between the host's and a device's decode of a cell's centre
@@ -194,15 +196,15 @@ pub fn build_sure_lut_into(normalized: &[Vec3], res: u32, lut: &mut [BlockBits])
 /// the light's normalized frame): the table's plane `every` at or below
 /// d − δ and `some` at or above d + δ in u's normal cell, as texel indices
 /// (without the block), where δ bounds |(u − n_t)·y| for |y| ≤ 1 plus
-/// [`LUT_ROUNDING`] and [`SURE_SLACK`]. So the samples of `every` are
-/// behind (u, d) by more than the rounding allowance and those outside
+/// the rounding `allowance` and [`SURE_SLACK`]. So the samples of `every`
+/// are behind (u, d) by more than the allowance and those outside
 /// `some` are in front by as much; `flags` say where no plane of the
 /// table does: SURE_ALL (every sample behind), SURE_NONE (none certainly
 /// behind), MAYBE_ALL (every sample possibly behind). Twin of
 /// `sure_texels` in `shaders/soft_occlusion.comp`.
-pub fn sure_texels(u: Vec3, d: f32, res: u32) -> SureTexels {
+pub fn sure_texels(u: Vec3, d: f32, res: u32, allowance: f32) -> SureTexels {
     let cell = lut_index(u, -1.0, res); // k = 0: the normal's cell
-    let delta = (u - cell_normal(cell, res)).length() * (1.0 + 1e-5) + LUT_ROUNDING + SURE_SLACK;
+    let delta = (u - cell_normal(cell, res)).length() * (1.0 + 1e-5) + allowance + SURE_SLACK;
     let (lo, hi) = (d - delta, d + delta);
     let half = 0.5 * res as f32;
     let ke = ((lo + 1.0) * half).floor();
@@ -285,13 +287,15 @@ mod tests {
             }
         }
         // For planes anywhere, "every" is behind and outside "some" is
-        // not, by more than the rounding allowance; each flag occurs.
+        // not, by more than the rounding allowance (none, a common pair's,
+        // the old fixed one, a small light's); each flag occurs.
         let (mut checked, mut flags) = (0, [0; 3]);
         for k in 0..6000 {
             let t = k as f32 * 0.754_877;
             let u = Vec3::new((t * 2.3).sin(), (t * 1.1).cos(), (t * 0.71).sin() - 0.1).normalize();
             let d = (t * 0.37).sin() * 1.08;
-            let st = sure_texels(u, d, res);
+            let allowance = [0.0, 3e-4, 1e-3, 2e-2][k % 4];
+            let st = sure_texels(u, d, res, allowance);
             flags[0] += st.sure_all as usize;
             flags[1] += st.sure_none as usize;
             flags[2] += st.maybe_all as usize;
@@ -301,13 +305,13 @@ mod tests {
                 let v = u.dot(*y) - d;
                 if at(sure) == 1 {
                     assert!(
-                        v < -LUT_ROUNDING,
+                        v < -allowance,
                         "plane {u} {d}, sample {s}: every, u.y - d = {v}"
                     );
                 }
                 if at(maybe) == 0 {
                     assert!(
-                        v >= LUT_ROUNDING,
+                        v >= allowance,
                         "plane {u} {d}, sample {s}: not some, u.y - d = {v}"
                     );
                 }
@@ -343,15 +347,18 @@ mod tests {
             ] {
                 let u = (n + nudge).normalize();
                 for k in 0..=res {
-                    for e in [-1e-3f32, -3e-5, -1e-7, 0.0, 1e-7, 3e-5, 1e-3] {
+                    for (e, allowance) in [-1e-3f32, -3e-5, -1e-7, 0.0, 1e-7, 3e-5, 1e-3]
+                        .into_iter()
+                        .flat_map(|e| [(e, 0.0), (e, 1e-3)])
+                    {
                         let d = sure_plane_d(k, res) + e;
-                        let st = sure_texels(u, d, res);
+                        let st = sure_texels(u, d, res, allowance);
                         for (s, y) in ys.iter().enumerate() {
                             let (sure, maybe) = st.bounds(&lut, 2, s / 128);
                             let at = |m: BlockBits| m[(s % 128) / 32] >> (s % 32) & 1;
                             let v = u.dot(*y) - d;
-                            assert!(at(sure) == 0 || v < -LUT_ROUNDING, "every: {v}");
-                            assert!(at(maybe) == 1 || v >= LUT_ROUNDING, "some: {v}");
+                            assert!(at(sure) == 0 || v < -allowance, "every: {v}");
+                            assert!(at(maybe) == 1 || v >= allowance, "some: {v}");
                             checked += 1;
                         }
                     }

@@ -4,7 +4,7 @@
 //! ([`Recording`]).
 
 use crate::cpu::light_view::LightView;
-use crate::cpu::plane_lut::LUT_ROUNDING;
+use crate::cpu::plane_lut::LUT_ALLOWANCE_CAP;
 use crate::gpu::alpha::AlphaInputs;
 use crate::gpu::pass_clock::PassClock;
 use crate::gpu::shared::{LightPush, LIGHT_KIND_DIRECTIONAL, LIGHT_KIND_POINT};
@@ -121,7 +121,7 @@ impl LightFrame {
                     sl.polygon_degree as f32,
                     base,
                     match sl.mode {
-                        SoftMode::Lut => LUT_ROUNDING,
+                        SoftMode::Lut => LUT_ALLOWANCE_CAP,
                         _ => 0.0,
                     },
                 ],

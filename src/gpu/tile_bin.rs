@@ -37,12 +37,15 @@ pub const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
 /// block count; 512 instead of approximate mode's earlier 256 made its
 /// warm 512² frames 1.4–1.5× faster on ToyCar, 1.1–1.2× on
 /// `torus_knot:20000`, and no different on `builtin:demo`).
-/// Its loops run at most twice per pair (the cheap rules, then the
-/// look-ups of the pairs that pass) plus once per window of `PAIR_WINDOW`
-/// (32) pairs and per 64 pairs compacted, far below lavapipe's 65535 loop iterations per
-/// invocation: the bound is the shared memory that holds a unit's pairs
-/// (`MAX_KEPT`). The unsure list holds at most one entry per lane, pair
-/// and block of a unit (`SoftOcclusionPass::capacity`).
+/// Its loops run at most five times per pair (the cheap rules, the planes,
+/// the wedge rule, the look-ups of the pairs that pass, the unsure list's
+/// writes) plus once per window of `PAIR_WINDOW` (32) pairs and per 64
+/// pairs compacted, and, with one block of light samples, once per unsure
+/// bit tested in place, which `IN_PLACE_BUDGET` (49152) holds per
+/// invocation: below lavapipe's 65535 loop iterations per invocation. The
+/// bound is the shared memory that holds a unit's pairs (`MAX_KEPT`). The
+/// unsure list holds at most one entry per lane, pair and block of a unit
+/// (`SoftOcclusionPass::capacity`).
 pub const LOOKUP_PAIR_CHUNK: (u32, u32) = (2, 512);
 
 /// Soft occlusion compacts a unit's pairs into `MAX_KEPT` (512) slots of
