@@ -14,7 +14,7 @@
 // or (SURE, the default mode: the masks of EXACT, all blocks in one pass)
 // the table bounds each plane's bits from both sides and only the bits it
 // leaves unsure are tested as EXACT tests them (see SURE_BLOCK): here, in
-// the opaque round with one block (within IN_PLACE_BUDGET), else by
+// the opaque round (within IN_PLACE_BUDGET), else by
 // soft_occlusion_unsure.comp.
 // The OR over casters goes into x's mask with one atomic OR per word; a
 // sample whose every light sample is blocked stops early. Closed meshes
@@ -314,6 +314,10 @@ uvec4 past_end(uint block) {
 // SURE mode: block K's unsure bits if K is `k` (a select, not an array:
 // lavapipe keeps locals in registers).
 #define PICK_UNSURE(K) if (k == uint(K)) picked = unsure##K;
+// The same for the in-place test's `left`, and its blocked bits `got` ORed
+// into block k's accumulator.
+#define PICK_LEFT(K) if (k == uint(K)) left = unsure##K;
+#define OR_GOT(K) acc##K |= k == uint(K) ? got : uvec4(0u);
 
 #define FLUSH_BLOCK(K)                                                       \
     if (acc##K != init##K) {                                                 \
@@ -576,7 +580,7 @@ void main() {
     uint s = un.slot;
     uvec2 texel = un.texel;
     uint tests = 0u, blocking = 0u, unsure_bits = 0u, listed = 0u, past_sphere = 0u, wedge_rejected = 0u;
-#if SURE && BLOCKS == 1
+#if SURE
     uint in_place_left = IN_PLACE_BUDGET;
 #endif
     // Exact mode: light-sample groups tested sample by sample, and groups
@@ -785,6 +789,7 @@ void main() {
                 sure_texels(p.u1, p.d2, res, allow, le2, ls2, lf2);
                 sure_texels(p.u2, p.d3, res, allow, le3, ls3, lf3);
                 uint unsure_blocks = 0u;
+                uint unsure_before = unsure_bits;
                 FOR_BLOCKS(SURE_BLOCK)
 #if BLOCKS == 1
                 // Up to 128 light samples, opaque round: the unsure bits are
@@ -793,9 +798,8 @@ void main() {
                 // most bits any lane has; nothing is listed. A sample they
                 // block wholly stops at once, and the list's code leaves the
                 // loop (lavapipe pays for the code a loop holds, run or
-                // not). The alpha round and more blocks keep the list
-                // (opacity look-ups per bit; lanes' bits spread over blocks).
-                // Measured in status.md, stop 51. Past IN_PLACE_BUDGET bits
+                // not). The alpha round keeps the list (opacity look-ups per
+                // bit). Measured in status.md, stop 51. Past IN_PLACE_BUDGET bits
                 // in this invocation a pair's bits are listed after all:
                 // lavapipe silently ends an invocation's loops after 65535
                 // iterations in all, and a unit's 512 pairs with 128 unsure
@@ -814,6 +818,33 @@ void main() {
                     bool blocked = exact_blocks(l, p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
                     acc0 |= in_word(w, blocked ? 1u << bit : 0u);
                     hit = hit || blocked;
+                }
+#else
+                // More blocks, opaque round: the same, block by block (a loop
+                // as long as the most blocks with bits any lane has, then
+                // one as long as the most bits in that block), within the
+                // same budget (a block's iteration counted as a bit).
+                uint pair_cost = unsure_bits - unsure_before + uint(bitCount(unsure_blocks));
+                bool in_place = ALPHA == 0u && pair_cost <= in_place_left;
+                in_place_left -= in_place ? pair_cost : 0u;
+                uint place_blocks = in_place ? unsure_blocks : 0u;
+                unsure_blocks = in_place ? 0u : unsure_blocks;
+                while (place_blocks != 0u) {
+                    uint k = uint(findLSB(place_blocks));
+                    place_blocks &= place_blocks - 1u;
+                    uvec4 left = unsure0;
+                    FOR_BLOCKS(PICK_LEFT)
+                    uint first_sample = (first_block + k) * 128u;
+                    uvec4 got = uvec4(0u);
+                    while (any(notEqual(left, uvec4(0u)))) {
+                        uint w;
+                        uint bit = take_lowest_bit(left, w);
+                        vec3 l = texelFetch(light_samples_tb, int(first_sample + w * 32u + bit)).xyz;
+                        bool blocked = exact_blocks(l, p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
+                        got |= in_word(w, blocked ? 1u << bit : 0u);
+                    }
+                    FOR_BLOCKS(OR_GOT)
+                    hit = hit || got != uvec4(0u);
                 }
 #endif
                 // The pair's entries, one per block with unsure bits, after

@@ -244,20 +244,24 @@ fn the_table_is_kept_across_runs() {
 #[test]
 fn unsure_list_ranges_equal_one_range() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
-    let desc = load_scene("builtin:torus_knot:20000", 128).unwrap();
-    let eye = desc.camera.eye;
-    let oracle = Oracle::new(&desc.scene.triangles(), eye);
-    let view = engine_view_samples(&oracle, &desc);
-    let light = bench_light(&desc, 200).unwrap();
+    // The opaque round tests a common scene's unsure bits in place; the
+    // tiny light's pairs pass the in-place budget and are listed: 200 light
+    // samples (two blocks) and 1024 view samples list ~0.85 M entries.
+    let TinyLight {
+        scene,
+        eye,
+        samples,
+        light,
+    } = tiny_light(200, 32);
     let settings = ShadowSettings::default();
     let one = engine
-        .soft_shadows(&desc.scene, eye, &view.samples, &light, &settings)
+        .soft_shadows(&scene, eye, &samples, &light, &settings)
         .unwrap();
     let exact = engine
         .soft_shadows(
-            &desc.scene,
+            &scene,
             eye,
-            &view.samples,
+            &samples,
             &light,
             &ShadowSettings {
                 mode: SoftMode::Exact,
@@ -282,7 +286,7 @@ fn unsure_list_ranges_equal_one_range() {
     for limit in [1u64, 3 * one_unit / 2] {
         engine.set_unsure_list_limit(Some(limit));
         let ranged = engine
-            .soft_shadows(&desc.scene, eye, &view.samples, &light, &settings)
+            .soft_shadows(&scene, eye, &samples, &light, &settings)
             .unwrap();
         let (a, b): (u32, u32) = (
             one.visible.iter().map(|w| w.count_ones()).sum(),
@@ -346,7 +350,17 @@ fn tiny_light_past_the_in_place_budget_stays_exact() {
     engine.context().check_validation().unwrap();
 }
 
-fn tiny_light_case(engine: &mut Engine, light_samples: u32) {
+/// The tiny-light case: its scene, eye, view samples and light.
+struct TinyLight {
+    scene: alias_free_shadows::scene::Scene,
+    eye: DVec3,
+    samples: Vec<Option<alias_free_shadows::oracle::ViewSample>>,
+    light: Light,
+}
+
+/// `light_samples` light samples, a grid of `grid` × `grid` view samples
+/// (all in one light texel).
+fn tiny_light(light_samples: u32, grid: usize) -> TinyLight {
     use alias_free_shadows::light::LightSamples;
     use alias_free_shadows::oracle::ViewSample;
     use alias_free_shadows::scene::{Mesh, Scene};
@@ -403,12 +417,27 @@ fn tiny_light_case(engine: &mut Engine, light_samples: u32) {
         meshes: vec![mesh],
         ..Default::default()
     };
-    let samples: Vec<Option<ViewSample>> = (0..16)
+    let samples = (0..grid * grid)
         .map(|i| {
-            let p = DVec3::new((i % 4) as f64, 0.0, (i / 4) as f64) * 1e-7;
+            let p = DVec3::new((i % grid) as f64, 0.0, (i / grid) as f64) * 1e-7;
             Some(ViewSample::user(p, DVec3::Y))
         })
         .collect();
+    TinyLight {
+        scene,
+        eye,
+        samples,
+        light,
+    }
+}
+
+fn tiny_light_case(engine: &mut Engine, light_samples: u32) {
+    let TinyLight {
+        scene,
+        eye,
+        samples,
+        light,
+    } = tiny_light(light_samples, 4);
     let run = |engine: &mut Engine, mode| {
         let settings = ShadowSettings {
             mode,

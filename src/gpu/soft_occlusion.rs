@@ -5,9 +5,10 @@
 //! every 128-sample block in one pass) or from testing every light sample
 //! (exact mode, one pass per block). In look-up mode (the default) the
 //! table bounds each plane's bits from both sides, and the bits it leaves
-//! unsure are tested exactly: the masks of exact mode. With one block (up
-//! to 128 samples) the opaque round tests them in its own loop; the alpha
-//! round and more blocks send them to a list that
+//! unsure are tested exactly: the masks of exact mode. The opaque round
+//! tests them in its own loop (block by block, within a budget of bits per
+//! invocation that keeps lavapipe's loop bound); the alpha round, and the
+//! pairs past the budget, send them to a list that
 //! `soft_occlusion_unsure.comp` tests. Shader `soft_occlusion.comp`,
 //! compiled once per mode and block count (`build.rs`). CPU twin:
 //! [`crate::cpu::soft_occlusion`].

@@ -40,9 +40,9 @@ pub const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
 /// Its loops run at most five times per pair (the cheap rules, the planes,
 /// the wedge rule, the look-ups of the pairs that pass, the unsure list's
 /// writes) plus once per window of `PAIR_WINDOW` (32) pairs and per 64
-/// pairs compacted, and, with one block of light samples, once per unsure
-/// bit tested in place, which `IN_PLACE_BUDGET` (49152) holds per
-/// invocation: below lavapipe's 65535 loop iterations per invocation. The
+/// pairs compacted, and once per unsure bit tested in place (and per block
+/// of them), which `IN_PLACE_BUDGET` (49152) holds per invocation: below
+/// lavapipe's 65535 loop iterations per invocation. The
 /// bound is the shared memory that holds a unit's pairs (`MAX_KEPT`). The
 /// unsure list holds at most one entry per lane, pair and block of a unit
 /// (`SoftOcclusionPass::capacity`).
