@@ -145,10 +145,11 @@ layout(set = 0, binding = 17) uniform usamplerBuffer list_sample_index_tb; // pe
 #endif
 #include "soft_occlusion_units.glsl"
 
-// The unsure bits that one invocation may test in place (one block, the
-// opaque round). Its other loops run at most about 2.8 K iterations (five
-// per kept pair, MAX_KEPT of them, and the windows', groups', compaction's
-// and searches'), so all of them stay below lavapipe's 65535.
+// The unsure bits (and blocks of them) that one invocation may test in
+// place in the opaque round. Its other loops run at most about 6.5 K
+// iterations (four per kept pair and one per block it lists, MAX_KEPT
+// pairs, and the windows', groups', compaction's and searches'), so all of
+// them stay below lavapipe's 65535 per invocation.
 #define IN_PLACE_BUDGET 49152u
 
 #define LUT_ALL 0xffffffffu
@@ -795,16 +796,14 @@ void main() {
                 // Up to 128 light samples, opaque round: the unsure bits are
                 // tested here, as the unsure pass tests them (the same
                 // planes, exact_blocks), in a loop that runs as often as the
-                // most bits any lane has; nothing is listed. A sample they
-                // block wholly stops at once, and the list's code leaves the
-                // loop (lavapipe pays for the code a loop holds, run or
-                // not). The alpha round keeps the list (opacity look-ups per
-                // bit). Measured in status.md, stop 51. Past IN_PLACE_BUDGET bits
-                // in this invocation a pair's bits are listed after all:
+                // most bits any lane has, and a sample they block wholly
+                // stops at once (measured in status.md, stop 51). The alpha
+                // round lists them (opacity look-ups per bit). So does a
+                // pair past IN_PLACE_BUDGET bits in this invocation:
                 // lavapipe silently ends an invocation's loops after 65535
                 // iterations in all, and a unit's 512 pairs with 128 unsure
-                // bits each would pass that (a light small for its
-                // distance leaves every bit unsure).
+                // bits each would pass that (a light small for its distance
+                // leaves every bit unsure; stop 53).
                 uint pair_unsure = bit_count(unsure0);
                 bool in_place = ALPHA == 0u && pair_unsure <= in_place_left;
                 in_place_left -= in_place ? pair_unsure : 0u;

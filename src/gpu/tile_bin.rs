@@ -37,9 +37,9 @@ pub const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
 /// block count; 512 instead of approximate mode's earlier 256 made its
 /// warm 512² frames 1.4–1.5× faster on ToyCar, 1.1–1.2× on
 /// `torus_knot:20000`, and no different on `builtin:demo`).
-/// Its loops run at most five times per pair (the cheap rules, the planes,
-/// the wedge rule, the look-ups of the pairs that pass, the unsure list's
-/// writes) plus once per window of `PAIR_WINDOW` (32) pairs and per 64
+/// Its loops run at most four times per pair (the cheap rules, the planes,
+/// the wedge rule, the look-ups of the pairs that pass) and once per block
+/// it lists, plus once per window of `PAIR_WINDOW` (32) pairs and per 64
 /// pairs compacted, and once per unsure bit tested in place (and per block
 /// of them), which `IN_PLACE_BUDGET` (49152) holds per invocation: below
 /// lavapipe's 65535 loop iterations per invocation. The
