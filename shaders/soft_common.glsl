@@ -124,4 +124,28 @@ bool exact_blocks(vec3 l, vec3 n, float sigma, vec3 a, vec3 x, vec3 m0, vec3 m1,
         && se * dot(m1, l - x) > 0.0 && se * dot(m2, l - x) > 0.0;
 }
 
+// `bits` as word `wd` of a block's four (a select, not an indexed write:
+// lavapipe keeps locals in registers).
+uvec4 in_word(uint wd, uint bits) {
+    return uvec4(wd == 0u ? bits : 0u, wd == 1u ? bits : 0u, wd == 2u ? bits : 0u, wd == 3u ? bits : 0u);
+}
+
+// The bits of `unsure` (light samples `first` + 0..127 of `samples`) whose
+// sample the caster blocks from x by exact_blocks: one loop over the set
+// bits of all four words, not one per word, so that a subgroup runs as
+// often as its busiest lane has bits, not the sum over words of each
+// word's busiest (the unsure pass and look-up occlusion's in-place test).
+uvec4 exact_blocked_bits(samplerBuffer samples, uint first, uvec4 unsure, vec3 n, float sigma, vec3 a, vec3 x,
+                         vec3 m0, vec3 m1, vec3 m2, float se) {
+    uvec4 left = unsure;
+    uvec4 got = uvec4(0u);
+    while (any(notEqual(left, uvec4(0u)))) {
+        uint w;
+        uint bit = take_lowest_bit(left, w);
+        vec3 l = texelFetch(samples, int(first + w * 32u + bit)).xyz;
+        got |= in_word(w, exact_blocks(l, n, sigma, a, x, m0, m1, m2, se) ? 1u << bit : 0u);
+    }
+    return got;
+}
+
 #endif

@@ -213,12 +213,6 @@ uvec4 lut_bits(uint code, uint block) {
         : (code == LUT_NONE ? uvec4(0u) : texelFetch(lut_tb, int(code * uint(BLOCKS) + block)));
 }
 
-// `bits` as word `wd` of a block's four (a select, not an indexed write:
-// lavapipe keeps locals in registers).
-uvec4 in_word(uint wd, uint bits) {
-    return uvec4(wd == 0u ? bits : 0u, wd == 1u ? bits : 0u, wd == 2u ? bits : 0u, wd == 3u ? bits : 0u);
-}
-
 // Adds `value` to the 64-bit counter whose low word is slot `lo` and high
 // word slot `lo + 1` (the carry of the low word).
 void count_wide(uint lo, uint value) {
@@ -792,56 +786,37 @@ void main() {
                 uint unsure_blocks = 0u;
                 uint unsure_before = unsure_bits;
                 FOR_BLOCKS(SURE_BLOCK)
-#if BLOCKS == 1
-                // Up to 128 light samples, opaque round: the unsure bits are
-                // tested here, as the unsure pass tests them (the same
-                // planes, exact_blocks), in a loop that runs as often as the
-                // most bits any lane has, and a sample they block wholly
-                // stops at once (measured in status.md, stop 51). The alpha
-                // round lists them (opacity look-ups per bit). So does a
-                // pair past IN_PLACE_BUDGET bits in this invocation:
-                // lavapipe silently ends an invocation's loops after 65535
-                // iterations in all, and a unit's 512 pairs with 128 unsure
-                // bits each would pass that (a light small for its distance
-                // leaves every bit unsure; stop 53).
-                uint pair_unsure = bit_count(unsure0);
-                bool in_place = ALPHA == 0u && pair_unsure <= in_place_left;
-                in_place_left -= in_place ? pair_unsure : 0u;
-                uvec4 left = in_place ? unsure0 : uvec4(0u);
-                unsure_blocks = in_place ? 0u : unsure_blocks;
-                uint first_sample = first_block * 128u;
-                while (any(notEqual(left, uvec4(0u)))) {
-                    uint w;
-                    uint bit = take_lowest_bit(left, w);
-                    vec3 l = texelFetch(light_samples_tb, int(first_sample + w * 32u + bit)).xyz;
-                    bool blocked = exact_blocks(l, p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
-                    acc0 |= in_word(w, blocked ? 1u << bit : 0u);
-                    hit = hit || blocked;
-                }
-#else
-                // More blocks, opaque round: the same, block by block (a loop
-                // as long as the most blocks with bits any lane has, then
-                // one as long as the most bits in that block), within the
-                // same budget (a block's iteration counted as a bit).
-                uint pair_cost = unsure_bits - unsure_before + uint(bitCount(unsure_blocks));
+                // The opaque round tests the unsure bits here, as the unsure
+                // pass tests them (the same planes and exact_blocked_bits), in
+                // a loop that runs as often as the most bits any lane has, so
+                // that a sample they block wholly stops at once (measured in
+                // status.md, stop 51); with more blocks, block by block (a
+                // loop as long as the most blocks with bits any lane has).
+                // The alpha round lists them (opacity look-ups per bit). So
+                // does a pair past IN_PLACE_BUDGET bits (a block's iteration
+                // counted as a bit) in this invocation: lavapipe silently
+                // ends an invocation's loops after 65535 iterations in all,
+                // and a unit's 512 pairs with 128 unsure bits each would pass
+                // that (a light small for its distance leaves every bit
+                // unsure; stop 53).
+                uint pair_cost = unsure_bits - unsure_before + (BLOCKS > 1 ? uint(bitCount(unsure_blocks)) : 0u);
                 bool in_place = ALPHA == 0u && pair_cost <= in_place_left;
                 in_place_left -= in_place ? pair_cost : 0u;
                 uint place_blocks = in_place ? unsure_blocks : 0u;
                 unsure_blocks = in_place ? 0u : unsure_blocks;
+#if BLOCKS == 1
+                uvec4 got = exact_blocked_bits(light_samples_tb, first_block * 128u, place_blocks != 0u ? unsure0 : uvec4(0u),
+                                               p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
+                acc0 |= got;
+                hit = hit || got != uvec4(0u);
+#else
                 while (place_blocks != 0u) {
                     uint k = uint(findLSB(place_blocks));
                     place_blocks &= place_blocks - 1u;
                     uvec4 left = unsure0;
                     FOR_BLOCKS(PICK_LEFT)
-                    uint first_sample = (first_block + k) * 128u;
-                    uvec4 got = uvec4(0u);
-                    while (any(notEqual(left, uvec4(0u)))) {
-                        uint w;
-                        uint bit = take_lowest_bit(left, w);
-                        vec3 l = texelFetch(light_samples_tb, int(first_sample + w * 32u + bit)).xyz;
-                        bool blocked = exact_blocks(l, p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
-                        got |= in_word(w, blocked ? 1u << bit : 0u);
-                    }
+                    uvec4 got = exact_blocked_bits(light_samples_tb, (first_block + k) * 128u, left,
+                                                   p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
                     FOR_BLOCKS(OR_GOT)
                     hit = hit || got != uvec4(0u);
                 }

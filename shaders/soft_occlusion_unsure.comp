@@ -59,39 +59,23 @@ void main() {
     vec3 m0 = cross(a - x, b - x), m1 = cross(b - x, c - x), m2 = cross(c - x, a - x);
     float se = dot(m0, c - x) < 0.0 ? -1.0 : 1.0;
     uint words = light_blocks() * 4u;
-    // One loop over the entry's unsure bits in all four words, not one per
-    // word: lanes of a subgroup run until the busiest lane is done, so the
-    // iterations are the most bits any lane has, not the sum over words of
-    // each word's most (torus_knot:20000, 1024 samples: ~6 unsure bits per
-    // entry spread over the words).
-    uvec4 left = unsure;
-    uvec4 got = uvec4(0u);
-    while (any(notEqual(left, uvec4(0u)))) {
-        uint w;
-        uint bit = take_lowest_bit(left, w);
-        vec3 l = texelFetch(light_samples_tb, int(block * 128u + w * 32u + bit)).xyz;
-        bool blocked = exact_blocks(l, n, sigma, a, x, m0, m1, m2, se);
-        if (blocked) {
-            uint one = 1u << bit;
-            got |= uvec4(w == 0u ? one : 0u, w == 1u ? one : 0u, w == 2u ? one : 0u, w == 3u ? one : 0u);
-        }
-    }
+    // One loop over the entry's unsure bits in all four words
+    // (torus_knot:20000, 1024 samples: ~6 unsure bits per entry spread over
+    // the words).
+    uvec4 got = exact_blocked_bits(light_samples_tb, block * 128u, unsure, n, sigma, a, x, m0, m1, m2, se);
     if (ALPHA != 0u) {
         // The opacity at the crossing, only for the samples the triangle
         // blocks, in a loop of its own over them: lavapipe runs an `if`
         // for every lane, and the opacity's texture look-ups cost more
         // than the exact tests.
-        left = got;
+        uvec4 left = got;
         got = uvec4(0u);
         while (any(notEqual(left, uvec4(0u)))) {
             uint w;
             uint bit = take_lowest_bit(left, w);
             vec3 l = texelFetch(light_samples_tb, int(block * 128u + w * 32u + bit)).xyz;
             vec2 bc = segment_barycentrics(x, l - x, a, b, c);
-            if (alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, c_record.w, bc)) {
-                uint one = 1u << bit;
-                got |= uvec4(w == 0u ? one : 0u, w == 1u ? one : 0u, w == 2u ? one : 0u, w == 3u ? one : 0u);
-            }
+            got |= in_word(w, alpha_opaque_at(alpha_records, alpha_textures, alpha_texels, c_record.w, bc) ? 1u << bit : 0u);
         }
     }
     uint base = s * words + block * 4u;
