@@ -145,11 +145,14 @@ layout(set = 0, binding = 17) uniform usamplerBuffer list_sample_index_tb; // pe
 #endif
 #include "soft_occlusion_units.glsl"
 
-// The unsure bits (and blocks of them) that one invocation may test in
-// place in the opaque round. Its other loops run at most about 6.5 K
-// iterations (four per kept pair and one per block it lists, MAX_KEPT
-// pairs, and the windows', groups', compaction's and searches'), so all of
-// them stay below lavapipe's 65535 per invocation.
+// The iterations of the in-place loops (unsure bits, and one per block
+// with bits) that one subgroup may run in the opaque round. Its other
+// loops run at most about 10.6 K iterations (four per kept pair, one per
+// block it lists and one per block whose in-place loop no lane enters,
+// MAX_KEPT pairs, and the windows', groups', compaction's and searches'),
+// so all of them stay below lavapipe's 65535 per subgroup (one SIMD
+// vector runs a subgroup's invocations together and counts its loops'
+// iterations once).
 #define IN_PLACE_BUDGET 49152u
 
 #define LUT_ALL 0xffffffffu
@@ -309,10 +312,16 @@ uvec4 past_end(uint block) {
 // SURE mode: block K's unsure bits if K is `k` (a select, not an array:
 // lavapipe keeps locals in registers).
 #define PICK_UNSURE(K) if (k == uint(K)) picked = unsure##K;
-// The same for the in-place test's `left`, and its blocked bits `got` ORed
-// into block k's accumulator.
-#define PICK_LEFT(K) if (k == uint(K)) left = unsure##K;
-#define OR_GOT(K) acc##K |= k == uint(K) ? got : uvec4(0u);
+// SURE mode, block K's unsure bits tested in place (when `in_place`), the
+// bits blocked ORed into its accumulator.
+#define PLACE_BLOCK(K)                                                       \
+    {                                                                        \
+        uvec4 got = exact_blocked_bits(light_samples_tb, (first_block + uint(K)) * 128u, \
+                                       in_place ? unsure##K : uvec4(0u),     \
+                                       p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se); \
+        acc##K |= got;                                                       \
+        hit = hit || got != uvec4(0u);                                       \
+    }
 
 #define FLUSH_BLOCK(K)                                                       \
     if (acc##K != init##K) {                                                 \
@@ -790,37 +799,31 @@ void main() {
                 // pass tests them (the same planes and exact_blocked_bits), in
                 // a loop that runs as often as the most bits any lane has, so
                 // that a sample they block wholly stops at once (measured in
-                // status.md, stop 51); with more blocks, block by block (a
-                // loop as long as the most blocks with bits any lane has).
-                // The alpha round lists them (opacity look-ups per bit). So
-                // does a pair past IN_PLACE_BUDGET bits (a block's iteration
-                // counted as a bit) in this invocation: lavapipe silently
-                // ends an invocation's loops after 65535 iterations in all,
-                // and a unit's 512 pairs with 128 unsure bits each would pass
-                // that (a light small for its distance leaves every bit
-                // unsure; stop 53).
-                uint pair_cost = unsure_bits - unsure_before + (BLOCKS > 1 ? uint(bitCount(unsure_blocks)) : 0u);
-                bool in_place = ALPHA == 0u && pair_cost <= in_place_left;
-                in_place_left -= in_place ? pair_cost : 0u;
-                uint place_blocks = in_place ? unsure_blocks : 0u;
+                // status.md, stop 51); with more blocks, one such loop per
+                // block, unrolled: no selects to pick a lane's block, and
+                // lanes' unsure bits mostly fall in the same blocks
+                // (torus_knot:20000 at 1024 samples: 8.7 M iterations where
+                // a loop over each lane's own blocks ran 16.3 M; the frame
+                // time did not measurably change, stop 54). The alpha round lists them (opacity look-ups per
+                // bit). So does a pair past IN_PLACE_BUDGET iterations of
+                // those loops in this subgroup: lavapipe silently ends the
+                // loops of a subgroup (one SIMD vector) after 65535
+                // iterations in all, and a unit's 512 pairs with 128 unsure
+                // bits each would pass that (a light small for its distance
+                // leaves every bit unsure; stop 53). The budget is counted
+                // per subgroup, as the loops count: a pair's cost is the sum
+                // of its lanes' bits (each block's loop runs as long as its
+                // busiest lane's bits, at most that sum) and one per block,
+                // one decision for every lane. A per-lane budget let 46 mask
+                // words differ (lut_exact.rs,
+                // lanes_with_unsure_bits_of_their_own_stay_exact; stop 54).
+                uint pair_bits = unsure_bits - unsure_before;
+                uint sg_bits = subgroupAdd(pair_bits);
+                uint sg_cost = sg_bits + (sg_bits != 0u ? uint(BLOCKS) : 0u);
+                bool in_place = ALPHA == 0u && sg_cost <= in_place_left;
+                in_place_left -= in_place ? sg_cost : 0u;
                 unsure_blocks = in_place ? 0u : unsure_blocks;
-#if BLOCKS == 1
-                uvec4 got = exact_blocked_bits(light_samples_tb, first_block * 128u, place_blocks != 0u ? unsure0 : uvec4(0u),
-                                               p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
-                acc0 |= got;
-                hit = hit || got != uvec4(0u);
-#else
-                while (place_blocks != 0u) {
-                    uint k = uint(findLSB(place_blocks));
-                    place_blocks &= place_blocks - 1u;
-                    uvec4 left = unsure0;
-                    FOR_BLOCKS(PICK_LEFT)
-                    uvec4 got = exact_blocked_bits(light_samples_tb, (first_block + k) * 128u, left,
-                                                   p.n, p.sigma, p.a, x, p.m0, p.m1, p.m2, p.se);
-                    FOR_BLOCKS(OR_GOT)
-                    hit = hit || got != uvec4(0u);
-                }
-#endif
+                FOR_BLOCKS(PLACE_BLOCK)
                 // The pair's entries, one per block with unsure bits, after
                 // the subgroup's lanes before it: one atomic per subgroup
                 // and pair (lavapipe serializes per-lane atomics), and the
@@ -941,6 +944,12 @@ void main() {
                     full = all(equal(all_blocks, uvec4(0xffffffffu)));
                 }
             }
+#if SURE
+            // The lanes that left the loop early did not count the
+            // iterations after they left; the last lane to leave counted
+            // them all (lanes converge here).
+            in_place_left = subgroupMin(in_place_left);
+#endif
         }
         if (un.has_sample) {
             FOR_BLOCKS(FLUSH_BLOCK)

@@ -477,6 +477,133 @@ fn tiny_light_case(engine: &mut Engine, light_samples: u32) {
     assert_eq!(lut.visibility, exact.visibility);
 }
 
+/// The in-place budget counts a subgroup's loop iterations, not each
+/// lane's bits: lavapipe runs a subgroup as one SIMD vector and ends all
+/// its loops after 65535 iterations in all (one counter per vector), and
+/// the loops over a pair's unsure bits run as long as the busiest lane's.
+/// Eight view samples in one light texel (one subgroup) under the tiny
+/// light of 1024 samples, each with near-miss casters of its own (every
+/// bit unsure from that sample, clear misses from the others): in a window
+/// of pairs the lanes have different numbers of them, so the subgroup's
+/// loops run well past the bits of any one lane. Each sample's blockers
+/// stand near the end of each unit of 512 pairs, where the loops' bound
+/// cuts off. With a per-lane budget of 49,152 bits, 46 mask words
+/// differed from exact mode (stop 54).
+#[test]
+fn lanes_with_unsure_bits_of_their_own_stay_exact() {
+    use alias_free_shadows::light::LightSamples;
+    use alias_free_shadows::oracle::ViewSample;
+    use alias_free_shadows::scene::file::LightTexels;
+    use alias_free_shadows::scene::{Mesh, Scene};
+    use std::f64::consts::TAU;
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let eye = DVec3::new(0.0, 1.0, 0.01);
+    let centre = DVec3::new(0.0, 2.0, 0.0);
+    let radius = 1e-5;
+    let demo = load_scene("builtin:demo", 16).unwrap();
+    let light = Light {
+        shape: LightShape::Sphere {
+            position: centre,
+            radius,
+        },
+        samples: 1024,
+        per_pixel_rotation: false,
+        ..demo.lights[0].clone()
+    };
+    let LightSamples::Positions(ls) = light.light_samples() else {
+        unreachable!("a sphere has positions")
+    };
+    // View sample t, 10 light radii from the next: a caster that nearly
+    // misses the light from one of them misses it by radii from the others.
+    let xs: Vec<DVec3> = (0..8)
+        .map(|t| DVec3::new(t as f64 * 10.0 * radius, 0.0, 0.0))
+        .collect();
+    // A horizontal triangle at height h on the cone from x to `target`
+    // (near the light), `size` across at the light.
+    let caster = |x: DVec3, target: DVec3, size: f64, h: f64, turn: f64| {
+        let c = x + (target - x) * (h / target.y);
+        let s = size * h / target.y;
+        let v = |a: f64| c + s * DVec3::new((turn + a).cos(), 0.0, (turn + a).sin());
+        [v(0.0), v(2.1), v(4.2)]
+    };
+    let units = 3;
+    let mut tris = Vec::new();
+    for k in 0..units * 512 {
+        let t = k as f64 * 0.618_034;
+        let side = DVec3::new((TAU * t).cos(), 0.0, (TAU * t).sin());
+        let lane = (k / 64) % 8;
+        tris.push(caster(
+            xs[lane],
+            centre + 1.6 * radius * side,
+            0.3 * radius,
+            0.8 + 0.4 * (t * 7.1).fract(),
+            t,
+        ));
+    }
+    // Near the end of each unit: one blocker per view sample, of a light
+    // sample or two.
+    for u in 0..units {
+        for (lane, &x) in xs.iter().enumerate() {
+            let j = u * 8 + lane;
+            tris[u * 512 + 500 + lane] =
+                caster(x, ls[(j * 11) % ls.len()], 0.08 * radius, 1.0, j as f64);
+        }
+    }
+    let positions: Vec<DVec3> = tris.iter().flatten().copied().collect();
+    let faces = (0..tris.len() as u32)
+        .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+        .collect();
+    let mut mesh = Mesh::new("casters", positions, faces);
+    mesh.closed = false;
+    let scene = Scene {
+        meshes: vec![mesh],
+        ..Default::default()
+    };
+    let samples: Vec<_> = xs
+        .iter()
+        .map(|&p| Some(ViewSample::user(p, DVec3::Y)))
+        .collect();
+    let run = |engine: &mut Engine, mode| {
+        let settings = ShadowSettings {
+            mode,
+            soft_light_texels: LightTexels::Fixed(1),
+            ..Default::default()
+        };
+        engine
+            .soft_shadows(&scene, eye, &samples, &light, &settings)
+            .unwrap()
+    };
+    let lut = run(&mut engine, SoftMode::Lut);
+    let exact = run(&mut engine, SoftMode::Exact);
+    let s = lut.stats.soft.as_ref().unwrap();
+    let differ = words_differ(&lut.visible, &exact.visible);
+    let blocked: Vec<u32> = exact
+        .visible
+        .chunks(32)
+        .map(|m| m.iter().map(|w| (!w).count_ones()).sum())
+        .collect();
+    eprintln!(
+        "blocked per view sample {blocked:?}; {} unsure bits, {} listed entries; {differ} mask words differ",
+        s.unsure_bits, s.unsure_entries
+    );
+    assert!(
+        blocked.iter().all(|&b| b > 0),
+        "every view sample has blockers"
+    );
+    assert!(
+        s.unsure_bits > 8 * 65536,
+        "the case must pass the subgroup's loop bound: {} unsure bits",
+        s.unsure_bits
+    );
+    assert!(
+        s.unsure_entries > 0,
+        "past the budget, unsure bits go to the list"
+    );
+    engine.context().check_validation().unwrap();
+    assert_eq!(differ, 0, "look-up and exact masks differ");
+    assert_eq!(lut.visibility, exact.visibility);
+}
+
 /// A light small for its distance (a 250th of it): each pair's rounding
 /// allowance is its own rounding bound, so the table still decides most
 /// bits (with one fixed allowance of 1e-3 light radii every bit of such a
