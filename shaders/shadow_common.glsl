@@ -13,9 +13,11 @@
 #define TILE 8u
 // Occlusion work units: one workgroup per (tile, chunk of OCC_PAIR_CHUNK
 // pairs, chunk of OCC_SAMPLE_CHUNK list entries). lavapipe (llvmpipe) ends
-// every loop of an invocation silently once all its loops together have run
-// 65535 iterations (LP_MAX_TGSI_LOOP_ITERATIONS), so each invocation's work
-// is bounded: occlusion.comp runs at most OCC_PAIR_CHUNK * (OCC_SAMPLE_CHUNK
+// every loop of a subgroup (one SIMD vector, whose loops run as long as
+// their busiest lane) silently once all its loops together have run 65535
+// iterations (LP_MAX_TGSI_LOOP_ITERATIONS), so each invocation's work is
+// bounded per loop iteration, which bounds the busiest lane's too:
+// occlusion.comp runs at most OCC_PAIR_CHUNK * (OCC_SAMPLE_CHUNK
 // + 2) + OCC_PAIR_CHUNK / PAIR_WINDOW + OCC_SAMPLE_CHUNK iterations (a
 // loop over each window's pairs, then the list for each pair that touches
 // the texel, and in the alpha round the opacity of the entries it hides;

@@ -41,8 +41,10 @@ pub const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
 /// the wedge rule, the look-ups of the pairs that pass) and once per block
 /// it lists, plus once per window of `PAIR_WINDOW` (32) pairs and per 64
 /// pairs compacted, and once per unsure bit tested in place (and per block
-/// of them), which `IN_PLACE_BUDGET` (49152) holds per invocation: below
-/// lavapipe's 65535 loop iterations per invocation. The
+/// of them), which `IN_PLACE_BUDGET` (49152) holds per subgroup: below
+/// lavapipe's 65535 loop iterations per subgroup (one SIMD vector, whose
+/// loops run as long as their busiest lane; the other bounds here are per
+/// iteration, so they hold for the busiest lane too). The
 /// bound is the shared memory that holds a unit's pairs (`MAX_KEPT`). The
 /// unsure list holds at most one entry per lane, pair and block of a unit
 /// (`SoftOcclusionPass::capacity`).
