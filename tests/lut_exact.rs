@@ -361,62 +361,27 @@ struct TinyLight {
 /// `light_samples` light samples, a grid of `grid` × `grid` view samples
 /// (all in one light texel).
 fn tiny_light(light_samples: u32, grid: usize) -> TinyLight {
-    use alias_free_shadows::light::LightSamples;
     use alias_free_shadows::oracle::ViewSample;
-    use alias_free_shadows::scene::{Mesh, Scene};
-    use std::f64::consts::TAU;
     let eye = DVec3::new(0.0, 1.0, 0.01);
-    let centre = DVec3::new(0.0, 2.0, 0.0);
-    let radius = 1e-5;
-    let demo = load_scene("builtin:demo", 16).unwrap();
-    let light = Light {
-        shape: LightShape::Sphere {
-            position: centre,
-            radius,
-        },
-        samples: light_samples,
-        per_pixel_rotation: false,
-        ..demo.lights[0].clone()
-    };
-    let LightSamples::Positions(ls) = light.light_samples() else {
-        unreachable!("a sphere has positions")
-    };
-    // A horizontal triangle at height h whose cone from the origin is
-    // centred on `target` (near the light) and `size` across there.
-    let caster = |target: DVec3, size: f64, h: f64, turn: f64| {
-        let c = target * (h / target.y);
-        let s = size * h / target.y;
-        let v = |a: f64| c + s * DVec3::new((turn + a).cos(), 0.0, (turn + a).sin());
-        [v(0.0), v(2.1), v(4.2)]
-    };
-    let mut tris = Vec::new();
-    for k in 0..1500 {
-        let t = k as f64 * 0.618_034;
-        let side = DVec3::new((TAU * t).cos(), 0.0, (TAU * t).sin());
-        tris.push(caster(
-            centre + 1.6 * radius * side,
-            0.3 * radius,
-            0.8 + 0.4 * (t * 7.1).fract(),
-            t,
-        ));
-    }
+    let (light, ls) = tiny_sphere_light(light_samples);
+    let radius = TINY_RADIUS;
+    let mut tris: Vec<_> = (0..1500)
+        .map(|k| near_miss_caster(DVec3::ZERO, k))
+        .collect();
     for j in 0..12 {
         let k = 498 + j;
         tris.insert(
             k,
-            caster(ls[(j * 11) % ls.len()], 0.08 * radius, 1.0, j as f64),
+            caster_towards(
+                DVec3::ZERO,
+                ls[(j * 11) % ls.len()],
+                0.08 * radius,
+                1.0,
+                j as f64,
+            ),
         );
     }
-    let positions: Vec<DVec3> = tris.iter().flatten().copied().collect();
-    let faces = (0..tris.len() as u32)
-        .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
-        .collect();
-    let mut mesh = Mesh::new("casters", positions, faces);
-    mesh.closed = false;
-    let scene = Scene {
-        meshes: vec![mesh],
-        ..Default::default()
-    };
+    let scene = open_soup(&tris);
     let samples = (0..grid * grid)
         .map(|i| {
             let p = DVec3::new((i % grid) as f64, 0.0, (i / grid) as f64) * 1e-7;
@@ -428,6 +393,74 @@ fn tiny_light(light_samples: u32, grid: usize) -> TinyLight {
         eye,
         samples,
         light,
+    }
+}
+
+/// The tiny light's centre, 2 above the view samples.
+const TINY_CENTRE: DVec3 = DVec3::new(0.0, 2.0, 0.0);
+/// The tiny light's radius: f32 rounding at its distance is a good part of
+/// a radius.
+const TINY_RADIUS: f64 = 1e-5;
+
+/// A sphere light of radius [`TINY_RADIUS`] at [`TINY_CENTRE`] with
+/// `samples` samples (the demo's light otherwise), and its sample
+/// positions.
+fn tiny_sphere_light(samples: u32) -> (Light, Vec<DVec3>) {
+    use alias_free_shadows::light::LightSamples;
+    let demo = load_scene("builtin:demo", 16).unwrap();
+    let light = Light {
+        shape: LightShape::Sphere {
+            position: TINY_CENTRE,
+            radius: TINY_RADIUS,
+        },
+        samples,
+        per_pixel_rotation: false,
+        ..demo.lights[0].clone()
+    };
+    let LightSamples::Positions(ls) = light.light_samples() else {
+        unreachable!("a sphere has positions")
+    };
+    (light, ls)
+}
+
+/// A horizontal triangle at height h on the cone from x (at height 0) to
+/// `target` (near the light), `size` across at the light's height.
+fn caster_towards(x: DVec3, target: DVec3, size: f64, h: f64, turn: f64) -> [DVec3; 3] {
+    let c = x + (target - x) * (h / target.y);
+    let s = size * h / target.y;
+    let v = |a: f64| c + s * DVec3::new((turn + a).cos(), 0.0, (turn + a).sin());
+    [v(0.0), v(2.1), v(4.2)]
+}
+
+/// Caster number k of those that nearly miss the tiny light from x: its
+/// cone misses the light by 0.6 radii, within the sphere rules' rounding
+/// allowance, so it passes them, blocks nothing and leaves every bit
+/// unsure.
+fn near_miss_caster(x: DVec3, k: usize) -> [DVec3; 3] {
+    use std::f64::consts::TAU;
+    let t = k as f64 * 0.618_034;
+    let side = DVec3::new((TAU * t).cos(), 0.0, (TAU * t).sin());
+    caster_towards(
+        x,
+        TINY_CENTRE + 1.6 * TINY_RADIUS * side,
+        0.3 * TINY_RADIUS,
+        0.8 + 0.4 * (t * 7.1).fract(),
+        t,
+    )
+}
+
+/// One open mesh of these triangles.
+fn open_soup(tris: &[[DVec3; 3]]) -> alias_free_shadows::scene::Scene {
+    use alias_free_shadows::scene::{Mesh, Scene};
+    let positions: Vec<DVec3> = tris.iter().flatten().copied().collect();
+    let faces = (0..tris.len() as u32)
+        .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+        .collect();
+    let mut mesh = Mesh::new("casters", positions, faces);
+    mesh.closed = false;
+    Scene {
+        meshes: vec![mesh],
+        ..Default::default()
     }
 }
 
@@ -491,74 +524,32 @@ fn tiny_light_case(engine: &mut Engine, light_samples: u32) {
 /// differed from exact mode (stop 54).
 #[test]
 fn lanes_with_unsure_bits_of_their_own_stay_exact() {
-    use alias_free_shadows::light::LightSamples;
     use alias_free_shadows::oracle::ViewSample;
     use alias_free_shadows::scene::file::LightTexels;
-    use alias_free_shadows::scene::{Mesh, Scene};
-    use std::f64::consts::TAU;
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
     let eye = DVec3::new(0.0, 1.0, 0.01);
-    let centre = DVec3::new(0.0, 2.0, 0.0);
-    let radius = 1e-5;
-    let demo = load_scene("builtin:demo", 16).unwrap();
-    let light = Light {
-        shape: LightShape::Sphere {
-            position: centre,
-            radius,
-        },
-        samples: 1024,
-        per_pixel_rotation: false,
-        ..demo.lights[0].clone()
-    };
-    let LightSamples::Positions(ls) = light.light_samples() else {
-        unreachable!("a sphere has positions")
-    };
+    let (light, ls) = tiny_sphere_light(1024);
+    let radius = TINY_RADIUS;
     // View sample t, 10 light radii from the next: a caster that nearly
     // misses the light from one of them misses it by radii from the others.
     let xs: Vec<DVec3> = (0..8)
         .map(|t| DVec3::new(t as f64 * 10.0 * radius, 0.0, 0.0))
         .collect();
-    // A horizontal triangle at height h on the cone from x to `target`
-    // (near the light), `size` across at the light.
-    let caster = |x: DVec3, target: DVec3, size: f64, h: f64, turn: f64| {
-        let c = x + (target - x) * (h / target.y);
-        let s = size * h / target.y;
-        let v = |a: f64| c + s * DVec3::new((turn + a).cos(), 0.0, (turn + a).sin());
-        [v(0.0), v(2.1), v(4.2)]
-    };
     let units = 3;
-    let mut tris = Vec::new();
-    for k in 0..units * 512 {
-        let t = k as f64 * 0.618_034;
-        let side = DVec3::new((TAU * t).cos(), 0.0, (TAU * t).sin());
-        let lane = (k / 64) % 8;
-        tris.push(caster(
-            xs[lane],
-            centre + 1.6 * radius * side,
-            0.3 * radius,
-            0.8 + 0.4 * (t * 7.1).fract(),
-            t,
-        ));
-    }
+    // In runs of 64 per view sample.
+    let mut tris: Vec<_> = (0..units * 512)
+        .map(|k| near_miss_caster(xs[(k / 64) % 8], k))
+        .collect();
     // Near the end of each unit: one blocker per view sample, of a light
     // sample or two.
     for u in 0..units {
         for (lane, &x) in xs.iter().enumerate() {
             let j = u * 8 + lane;
             tris[u * 512 + 500 + lane] =
-                caster(x, ls[(j * 11) % ls.len()], 0.08 * radius, 1.0, j as f64);
+                caster_towards(x, ls[(j * 11) % ls.len()], 0.08 * radius, 1.0, j as f64);
         }
     }
-    let positions: Vec<DVec3> = tris.iter().flatten().copied().collect();
-    let faces = (0..tris.len() as u32)
-        .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
-        .collect();
-    let mut mesh = Mesh::new("casters", positions, faces);
-    mesh.closed = false;
-    let scene = Scene {
-        meshes: vec![mesh],
-        ..Default::default()
-    };
+    let scene = open_soup(&tris);
     let samples: Vec<_> = xs
         .iter()
         .map(|&p| Some(ViewSample::user(p, DVec3::Y)))
