@@ -804,8 +804,9 @@ void main() {
                 // lanes' unsure bits mostly fall in the same blocks
                 // (torus_knot:20000 at 1024 samples: 8.7 M iterations where
                 // a loop over each lane's own blocks ran 16.3 M; the frame
-                // time did not measurably change, stop 54). The alpha round lists them (opacity look-ups per
-                // bit). So does a pair past IN_PLACE_BUDGET iterations of
+                // time did not measurably change, stop 54). The alpha round
+                // lists them (opacity look-ups per bit). So does a pair past
+                // IN_PLACE_BUDGET iterations of
                 // those loops in this subgroup: lavapipe silently ends the
                 // loops of a subgroup (one SIMD vector) after 65535
                 // iterations in all, and a unit's 512 pairs with 128 unsure

@@ -464,24 +464,29 @@ fn open_soup(tris: &[[DVec3; 3]]) -> alias_free_shadows::scene::Scene {
     }
 }
 
-fn tiny_light_case(engine: &mut Engine, light_samples: u32) {
-    let TinyLight {
-        scene,
-        eye,
-        samples,
-        light,
-    } = tiny_light(light_samples, 4);
-    let run = |engine: &mut Engine, mode| {
-        let settings = ShadowSettings {
-            mode,
-            ..Default::default()
-        };
+/// A tiny-light case in look-up mode and in exact mode, under `settings`
+/// otherwise.
+fn lut_and_exact(
+    engine: &mut Engine,
+    case: &TinyLight,
+    settings: ShadowSettings,
+) -> (
+    alias_free_shadows::render::SoftShadowResult,
+    alias_free_shadows::render::SoftShadowResult,
+) {
+    let mut run = |mode| {
+        let settings = ShadowSettings { mode, ..settings };
         engine
-            .soft_shadows(&scene, eye, &samples, &light, &settings)
+            .soft_shadows(&case.scene, case.eye, &case.samples, &case.light, &settings)
             .unwrap()
     };
-    let lut = run(engine, SoftMode::Lut);
-    let exact = run(engine, SoftMode::Exact);
+    (run(SoftMode::Lut), run(SoftMode::Exact))
+}
+
+fn tiny_light_case(engine: &mut Engine, light_samples: u32) {
+    let case = tiny_light(light_samples, 4);
+    let (lut, exact) = lut_and_exact(engine, &case, ShadowSettings::default());
+    let samples = &case.samples;
     let blocked: u32 = exact.visible.iter().map(|w| (!w).count_ones()).sum();
     let s = lut.stats.soft.as_ref().unwrap();
     let differ = words_differ(&lut.visible, &exact.visible);
@@ -549,23 +554,20 @@ fn lanes_with_unsure_bits_of_their_own_stay_exact() {
                 caster_towards(x, ls[(j * 11) % ls.len()], 0.08 * radius, 1.0, j as f64);
         }
     }
-    let scene = open_soup(&tris);
-    let samples: Vec<_> = xs
-        .iter()
-        .map(|&p| Some(ViewSample::user(p, DVec3::Y)))
-        .collect();
-    let run = |engine: &mut Engine, mode| {
-        let settings = ShadowSettings {
-            mode,
-            soft_light_texels: LightTexels::Fixed(1),
-            ..Default::default()
-        };
-        engine
-            .soft_shadows(&scene, eye, &samples, &light, &settings)
-            .unwrap()
+    let case = TinyLight {
+        scene: open_soup(&tris),
+        eye,
+        samples: xs
+            .iter()
+            .map(|&p| Some(ViewSample::user(p, DVec3::Y)))
+            .collect(),
+        light,
     };
-    let lut = run(&mut engine, SoftMode::Lut);
-    let exact = run(&mut engine, SoftMode::Exact);
+    let settings = ShadowSettings {
+        soft_light_texels: LightTexels::Fixed(1),
+        ..Default::default()
+    };
+    let (lut, exact) = lut_and_exact(&mut engine, &case, settings);
     let s = lut.stats.soft.as_ref().unwrap();
     let differ = words_differ(&lut.visible, &exact.visible);
     let blocked: Vec<u32> = exact

@@ -6,8 +6,9 @@
 //! (exact mode, one pass per block). In look-up mode (the default) the
 //! table bounds each plane's bits from both sides, and the bits it leaves
 //! unsure are tested exactly: the masks of exact mode. The opaque round
-//! tests them in its own loop (block by block, within a budget of bits per
-//! invocation that keeps lavapipe's loop bound); the alpha round, and the
+//! tests them in its own loops (one per block, within a budget of loop
+//! iterations per subgroup that keeps lavapipe's loop bound); the alpha
+//! round, and the
 //! pairs past the budget, send them to a list that
 //! `soft_occlusion_unsure.comp` tests. Shader `soft_occlusion.comp`,
 //! compiled once per mode and block count (`build.rs`). CPU twin:
