@@ -38,8 +38,8 @@ layout(local_size_x = 64) in;
 // segment's crossing, tested per light sample (exact mode, here; look-up
 // mode, every bit the table does not rule out goes to the unsure list).
 layout(constant_id = 5) const uint ALPHA = 0u;
-// The wedge rule (wedges_miss_light; exact masks only) in a loop of its
-// own between the first loop and the second: 0 turns it off
+// The wedge rule (wedges_miss_light; where WEDGE_COMPILED) in a loop of
+// its own between the first loop and the second: 0 turns it off
 // (ShadowSettings::wedge_rule).
 layout(constant_id = 7) const uint WEDGE_RULE = 1u;
 // Compiled once per variant (build.rs): EXACT=1, or LUT_BLOCKS=1..8 (the
@@ -57,16 +57,13 @@ layout(constant_id = 7) const uint WEDGE_RULE = 1u;
 #endif
 // The masks of exact mode (per-sample tests, with their rounding margins).
 #define EXACT_MASKS (EXACT != 0 || SURE != 0)
-// The wedge rule runs in a window while the second loop's iterations it
-// saved, times WEDGE_WORTH, are at least its own (an iteration of the
-// second loop costs about WEDGE_WORTH of the rule's): with one block of
-// look-ups a second-loop iteration is cheap, with more, or per-sample
-// tests, the rule always runs (0).
-#if EXACT || LUT_BLOCKS > 1
-#define WEDGE_WORTH 0
-#else
-#define WEDGE_WORTH 1
-#endif
+// The wedge rule is compiled in where it pays: exact mode, and look-up
+// mode at two or more blocks. At one block (look-up mode up to 128
+// samples) it cost more than it saved even when run only while it paid
+// (stop 47's bookkeeping): a warm 256² frame's shader instructions fall
+// without it, torus_knot:20000 4442 -> 4293 M, ToyCar on a ground 8584
+// -> 8226 M (scripts/frame-instructions.sh; docs/status.md, stop 55).
+#define WEDGE_COMPILED (EXACT != 0 || (SURE != 0 && LUT_BLOCKS > 1))
 #if EXACT
 #define BLOCKS 1
 #else
@@ -663,11 +660,6 @@ void main() {
         uvec4 all_init = uvec4(0xffffffffu);
         FOR_BLOCKS(AND_INIT)
         bool full = !un.has_sample || all(equal(all_init, uvec4(0xffffffffu)));
-#if EXACT_MASKS && WEDGE_WORTH != 0
-        // The wedge rule's loop iterations so far, and the second loop's
-        // iterations it saved (the busiest lane's, per window).
-        uint wedge_cost = 0u, wedge_saved = 0u;
-#endif
         for (uint w0 = begin; w0 < end; w0 += PAIR_WINDOW) {
             // The subgroup leaves together: its lanes stay converged for
             // the first loop's shuffles.
@@ -733,7 +725,7 @@ void main() {
                     }
                 }
             }
-#if EXACT_MASKS
+#if WEDGE_COMPILED
             // The wedge rule, over the pairs that passed, in a loop of its
             // own: each iteration recomputes a pair's planes, and the second
             // loop then runs as often as its busiest lane's pairs left. In
@@ -743,18 +735,8 @@ void main() {
             // iterations fall where it rejects most (ToyCar: 2.16 -> 0.43 M
             // for the subgroups).
             if (WEDGE_RULE != 0u) {
-                // Run while it pays (WEDGE_WORTH): the subgroup's trip
-                // counts so far decide, the same for every lane.
-#if WEDGE_WORTH != 0
-                bool run = wedge_saved * uint(WEDGE_WORTH) >= wedge_cost;
-#else
-                bool run = true;
-#endif
-                uint candidates = full || !run ? 0u : passed;
-                passed = run ? 0u : passed;
-#if WEDGE_WORTH != 0
-                uint trips = subgroupMax(uint(bitCount(candidates)));
-#endif
+                uint candidates = full ? 0u : passed;
+                passed = 0u;
                 while (candidates != 0u) {
                     uint j = uint(findLSB(candidates));
                     candidates &= candidates - 1u;
@@ -764,11 +746,6 @@ void main() {
                     passed |= wedge_miss ? 0u : 1u << j;
                     wedge_rejected += wedge_miss ? 1u : 0u;
                 }
-#if WEDGE_WORTH != 0
-                uint left = subgroupMax(full || !run ? 0u : uint(bitCount(passed)));
-                wedge_cost += trips;
-                wedge_saved += trips - left;
-#endif
             }
 #endif
             past_sphere += uint(bitCount(passed));

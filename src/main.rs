@@ -162,7 +162,8 @@ struct RenderArgs {
     /// Turn soft occlusion's wedge rule off (casters whose cone from a view
     /// sample passes the light's sphere then go on to the look-ups or the
     /// per-light-sample tests; the same result, slower: for measuring what
-    /// the rule saves) (overrides [shadows] wedge_rule).
+    /// the rule saves; exact mode, and look-up mode past 128 samples)
+    /// (overrides [shadows] wedge_rule).
     #[arg(long)]
     no_wedge_rule: bool,
     /// Use the Vulkan device whose name contains this text (also AFS_DEVICE).

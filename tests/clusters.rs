@@ -62,9 +62,10 @@ fn clusters_change_no_result() {
     // Soft tests by outcome: the caster's plane, an edge's plane, the wedge
     // rule, past all three.
     let mut outcomes = [0u64; 4];
-    // The wedge rule's rejections in look-up mode's one-block shader
-    // (which once compiled the rule out).
-    let mut lut_one_block_wedge = 0u64;
+    // The wedge rule's rejections in look-up mode's one-block shader (which
+    // compiles the rule out: it cost more than it saved there) and in its
+    // two-block shader (which runs it).
+    let (mut lut_one_block_wedge, mut lut_two_block_wedge) = (0u64, 0u64);
     let (mut light_side, mut behind_closed, mut penumbra, mut chunk, mut cases) =
         (0u64, 0u64, 0u64, 0u64, 0);
     // The reach rule's (pair, chunk) drops and (sample, pair) culls.
@@ -172,6 +173,8 @@ fn clusters_change_no_result() {
                     assert_eq!(skipped(&no_wedge), 0, "{spec}, {name}, {mode:?}");
                     if mode == SoftMode::Lut && light.samples <= 128 {
                         lut_one_block_wedge += skipped(&with) as u64;
+                    } else if mode == SoftMode::Lut {
+                        lut_two_block_wedge += skipped(&with) as u64;
                     }
                 }
                 assert_eq!(
@@ -259,9 +262,13 @@ fn clusters_change_no_result() {
         outcomes[0], outcomes[1], outcomes[2], outcomes[3]
     );
     assert!(outcomes.iter().all(|&n| n > 0), "every test outcome seen");
+    assert_eq!(
+        lut_one_block_wedge, 0,
+        "the wedge rule is compiled out of look-up mode's one-block shader"
+    );
     assert!(
-        lut_one_block_wedge > 0,
-        "the wedge rule rejects in look-up mode at one block"
+        lut_two_block_wedge > 0,
+        "the wedge rule rejects in look-up mode at two blocks"
     );
     engine.context().check_validation().unwrap();
 }
