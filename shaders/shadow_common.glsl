@@ -29,8 +29,8 @@ layout(constant_id = 2) const uint OCC_PAIR_CHUNK = 64u;
 // The occlusion passes take their pairs in windows of PAIR_WINDOW, in two
 // loops: the cheap rules for every pair of the window, which leave a
 // bitmask of the pairs that pass, then the expensive work for those only
-// (a findLSB loop over the mask; soft occlusion with exact masks first
-// narrows the mask by the wedge rule in a findLSB loop of its own). On
+// (a findLSB loop over the mask; exact soft occlusion first narrows the
+// mask by the wedge rule in a findLSB loop of its own). On
 // lavapipe a lane's `continue` or `if` only masks it, so a loop body costs
 // its whole length whenever any lane of the subgroup runs it; only a
 // loop's trip count saves time. Most (sample, pair) combinations fail the
@@ -88,7 +88,7 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 32u;
 #define COUNTER_GROUPS_EVERY_HI 20
 // Soft occlusion: tests that passed the four planes' sphere tests and
 // that the wedge rule (soft_occlusion.comp: wedges_miss_light) rejected
-// (exact and look-up modes).
+// (exact mode only).
 #define COUNTER_WEDGE_REJECTED 21
 // Soft occlusion: (view sample, work unit) visits, once per block pass in
 // exact mode. It does not depend on the order of the lists' atomics (the

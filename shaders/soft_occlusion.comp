@@ -57,13 +57,14 @@ layout(constant_id = 7) const uint WEDGE_RULE = 1u;
 #endif
 // The masks of exact mode (per-sample tests, with their rounding margins).
 #define EXACT_MASKS (EXACT != 0 || SURE != 0)
-// The wedge rule is compiled in where it pays: exact mode, and look-up
-// mode at two or more blocks. At one block (look-up mode up to 128
-// samples) it cost more than it saved even when run only while it paid
-// (stop 47's bookkeeping): a warm 256² frame's shader instructions fall
-// without it, torus_knot:20000 4442 -> 4293 M, ToyCar on a ground 8584
-// -> 8226 M (scripts/frame-instructions.sh; docs/status.md, stop 55).
-#define WEDGE_COMPILED (EXACT != 0 || (SURE != 0 && LUT_BLOCKS > 1))
+// The wedge rule is compiled into exact mode only. In look-up mode it cost
+// more than it saved even when run only while it paid (stop 47's
+// bookkeeping): a warm 256² frame's shader instructions fall without it at
+// one block, torus_knot:20000 4442 -> 4293 M, ToyCar on a ground 8584 ->
+// 8226 M; at two blocks torus_knot:20000 5368 -> 5034 M; at eight blocks
+// torus_knot:20000 9527 -> 9437 M, ToyCar 12073 -> 11878 M
+// (scripts/frame-instructions.sh; docs/status.md, stops 55 and 56).
+#define WEDGE_COMPILED (EXACT != 0)
 #if EXACT
 #define BLOCKS 1
 #else

@@ -160,9 +160,9 @@ struct RenderArgs {
     #[arg(long)]
     no_clusters: bool,
     /// Turn soft occlusion's wedge rule off (casters whose cone from a view
-    /// sample passes the light's sphere then go on to the look-ups or the
-    /// per-light-sample tests; the same result, slower: for measuring what
-    /// the rule saves; exact mode, and look-up mode past 128 samples)
+    /// sample passes the light's sphere then go on to the per-light-sample
+    /// tests; the same result, slower: for measuring what the rule saves;
+    /// exact mode only, look-up mode never runs it)
     /// (overrides [shadows] wedge_rule).
     #[arg(long)]
     no_wedge_rule: bool,

@@ -128,8 +128,8 @@ pub struct SoftStats {
     pub edge_rejected_tests: u32,
     /// Tests past those bounding-sphere tests that the wedge rule
     /// rejected: two of the edges' planes together leave the light's
-    /// sphere outside, where neither does alone (exact mode, and look-up
-    /// mode past 128 samples; `COUNTER_WEDGE_REJECTED`).
+    /// sphere outside, where neither does alone (exact mode only;
+    /// `COUNTER_WEDGE_REJECTED`).
     #[serde(default)]
     pub wedge_rejected_tests: u32,
     /// Tests past those bounding-sphere tests and the wedge rule, which

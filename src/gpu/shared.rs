@@ -213,7 +213,7 @@ pub mod counter {
     pub const GROUPS_EVERY_HI: usize = 20;
     /// Soft occlusion: tests past the four planes' sphere tests that the
     /// wedge rule rejected (two edges' planes together leave the light's
-    /// sphere outside; exact and look-up modes).
+    /// sphere outside; exact mode only).
     pub const WEDGE_REJECTED: usize = 21;
     /// Soft occlusion: (view sample, work unit) visits, once per block
     /// pass in exact mode. Unlike the tests, it does not depend on the

@@ -174,9 +174,8 @@ pub struct ShadowSettings {
     /// The wedge rule of soft occlusion: a caster whose cone from a view
     /// sample passes the light's bounding sphere (two edges' planes
     /// together leave it outside, where neither does alone) is skipped
-    /// before its look-ups or per-light-sample tests (exact mode, and
-    /// look-up mode past 128 samples; `soft_occlusion.comp`:
-    /// `wedges_miss_light`; look-up mode with one 128-sample block has it
+    /// before its per-light-sample tests (exact mode only;
+    /// `soft_occlusion.comp`: `wedges_miss_light`; look-up mode has it
     /// compiled out, where it cost more than it saved). The results are the
     /// same either way; off only to measure what it saves.
     pub wedge_rule: bool,
