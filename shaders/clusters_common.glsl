@@ -117,9 +117,9 @@ uint edge_rule(vec3 p, vec3 q, vec3 r, vec3 o, float rr, vec3 bc, vec3 bh, float
     vec3 w = o - p;
     vec3 wp = w - d * (dot(w, d) / dd);
     float h = length(wp);
-    if (!(h > rr) || !(dd > 0.0)) {
-        return 0u; // the sphere reaches the edge's line: every plane through it cuts the sphere
-    }
+    // The sphere reaches the edge's line: every plane through it cuts the
+    // sphere (decided at the end: see cull_rule).
+    bool reaches = !(h > rr) || !(dd > 0.0);
     vec3 e1 = wp / h;
     vec3 e2 = normalize(cross(d, e1));
     float sa = rr / h, ca = sqrt(max(0.0, 1.0 - sa * sa));
@@ -134,7 +134,7 @@ uint edge_rule(vec3 p, vec3 q, vec3 r, vec3 o, float rr, vec3 bc, vec3 bh, float
     bool pos = rpl.x >= mp, neg = rpl.y <= -mp;
     uint outside = (upper && pos) || (lower && neg) ? 1u : 0u;
     uint inside = (upper && neg) || (lower && pos) ? 2u : 0u;
-    return outside | inside;
+    return reaches ? 0u : outside | inside;
 }
 
 // Whether the caster of `cp` blocks no light sample of any point of the
@@ -173,9 +173,8 @@ bool outside_penumbra(ClusterPlane cp, vec3 bc, vec3 bh, float m) {
         float len = i == 0 ? lab : (i == 1 ? lbc : lca);
         vec3 v = bc - p, e = q - p;
         float line_dist = length(v - e * (dot(v, e) / dot(e, e))) - ext;
-        if (line_dist > 0.0) {
-            rules |= edge_rule(p, q, r, o, grow + k * dp * dq / (len * line_dist), bc, bh, m);
-        }
+        uint edge = edge_rule(p, q, r, o, grow + k * dp * dq / (len * line_dist), bc, bh, m);
+        rules |= line_dist > 0.0 ? edge : 0u;
     }
     return (rules & 1u) != 0u && (sure || (rules & 2u) != 0u);
 }
@@ -193,20 +192,17 @@ float cluster_margin(ClusterPlane cp, vec3 lo, vec3 hi) {
 // the light never cross it), or, soft shadows, behind a closed caster
 // (occlusion's back-face rule).
 uint cull_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
-    if (cp.n == vec3(0.0)) {
-        return CLUSTER_KEEP;
-    }
+    // Straight-line code and one select at the end, not early returns:
+    // lavapipe runs every lane through all of it anyway, and each return
+    // adds a mask to what follows.
     vec3 c = 0.5 * (lo + hi), h = 0.5 * (hi - lo);
     float dc = dot(cp.n, c - cp.a);
     float r = dot(abs(cp.n), h);
     float m = cluster_margin(cp, lo, hi);
-    if ((cp.side > 0.0 && dc - r >= m) || (cp.side < 0.0 && dc + r <= -m)) {
-        return CLUSTER_LIGHT_SIDE;
-    }
-    if (is_soft() && cp.closed && dc + r <= -m) {
-        return CLUSTER_BEHIND_CLOSED;
-    }
-    return CLUSTER_KEEP;
+    bool light_side = (cp.side > 0.0 && dc - r >= m) || (cp.side < 0.0 && dc + r <= -m);
+    bool behind_closed = is_soft() && cp.closed && dc + r <= -m;
+    uint rule = light_side ? CLUSTER_LIGHT_SIDE : (behind_closed ? CLUSTER_BEHIND_CLOSED : CLUSTER_KEEP);
+    return cp.n == vec3(0.0) ? CLUSTER_KEEP : rule;
 }
 
 // The reach rule (soft shadows): a caster whose every point is farther
@@ -268,8 +264,10 @@ float hull_distance(vec3 p, vec3 a, float r1, vec3 b, float r2, float len) {
     vec3 xv = pa * l2 - ba * y;
     float x2 = dot(xv, xv), y2 = y * y * l2, z2 = z * z * l2;
     float k = sign(rr) * rr * rr * x2;
-    float d = sign(z) * a2 * z2 > k ? sqrt(x2 + z2) * il2 - r2
-        : (sign(y) * a2 * y2 < k ? sqrt(x2 + y2) * il2 - r1 : (sqrt(x2 * a2 * il2) + y * rr) * il2 - r1);
+    // The three candidates computed, then selected (see cull_rule).
+    float d_b = sqrt(x2 + z2) * il2 - r2, d_a = sqrt(x2 + y2) * il2 - r1;
+    float d_side = (sqrt(x2 * a2 * il2) + y * rr) * il2 - r1;
+    float d = sign(z) * a2 * z2 > k ? d_b : (sign(y) * a2 * y2 < k ? d_a : d_side);
     // A cone's side steeper than about 87 degrees: no rule.
     return a2 > 1e-2 * l2 ? d : uintBitsToFloat(0x7fc00000u);
 }
@@ -306,13 +304,12 @@ uint far_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
     vec3 o = pc.origin.xyz;
     float reach = max(length(max(abs(lo - o), abs(hi - o))), pc.soft_light.x);
     vec4 ball = caster_ball(cp.a, cp.b, cp.c);
-    if (beyond_reach(caster_sphere(o, ball), reach, REACH_MARGIN_BOX)) {
-        return CLUSTER_BEYOND_REACH;
-    }
+    bool beyond = beyond_reach(caster_sphere(o, ball), reach, REACH_MARGIN_BOX);
     // The hull rule for a ball holding the box (its radius measured from
     // the rounded centre, and rounded up).
     float rb = length(max(abs(hi - c), abs(lo - c))) * (1.0 + 1e-6);
-    return outside_hull(ball, c, rb, HULL_MARGIN_BOX) ? CLUSTER_OUTSIDE_HULL : CLUSTER_KEEP;
+    bool outside = outside_hull(ball, c, rb, HULL_MARGIN_BOX);
+    return beyond ? CLUSTER_BEYOND_REACH : (outside ? CLUSTER_OUTSIDE_HULL : CLUSTER_KEEP);
 }
 
 // Tile binning's rule for a tile's box: cull_rule, and for soft shadows
@@ -340,14 +337,12 @@ uint cluster_block_box(uint face, uvec2 block) {
 // far_rule. Twin: cpu::clusters::chunk_rule.
 uint chunk_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
     uint rule = cull_rule(cp, lo, hi);
-    if (rule != CLUSTER_KEEP || !is_soft()) {
-        return rule;
-    }
+    // Every rule computed, then chosen in their order (see cull_rule).
     vec3 c = 0.5 * (lo + hi), h = 0.5 * (hi - lo);
-    if (cp.n != vec3(0.0) && outside_penumbra(cp, c, h, cluster_margin(cp, lo, hi))) {
-        return CLUSTER_OUTSIDE_PENUMBRA;
-    }
-    return far_rule(cp, lo, hi);
+    bool penumbra = outside_penumbra(cp, c, h, cluster_margin(cp, lo, hi));
+    uint far = far_rule(cp, lo, hi);
+    uint soft_rule = cp.n != vec3(0.0) && penumbra ? CLUSTER_OUTSIDE_PENUMBRA : far;
+    return rule != CLUSTER_KEEP || !is_soft() ? rule : soft_rule;
 }
 
 

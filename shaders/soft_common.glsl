@@ -101,15 +101,17 @@ uint lut_normal_cell(vec3 n, uint res, out vec3 centre) {
 }
 
 // Takes the lowest set bit out of a 128-bit mask (words x..w, not all
-// zero): its word, and its bit in that word (selects, not an indexed
-// write: lavapipe keeps locals in registers).
+// zero): its word, and its bit in that word. Selects (mix with a boolean),
+// not nested `?:`, which the compilers turned into branches: on lavapipe
+// each branch is a masked block with its own mask bookkeeping.
 uint take_lowest_bit(inout uvec4 left, out uint w) {
-    w = left.x != 0u ? 0u : (left.y != 0u ? 1u : (left.z != 0u ? 2u : 3u));
-    uint word = w == 0u ? left.x : (w == 1u ? left.y : (w == 2u ? left.z : left.w));
+    bvec4 nonzero = notEqual(left, uvec4(0u));
+    w = mix(mix(mix(3u, 2u, nonzero.z), 1u, nonzero.y), 0u, nonzero.x);
+    bvec4 is_w = equal(uvec4(w), uvec4(0u, 1u, 2u, 3u));
+    uvec4 picked = mix(uvec4(0u), left, is_w);
+    uint word = picked.x | picked.y | picked.z | picked.w;
     uint bit = uint(findLSB(word));
-    uint rest = word & (word - 1u);
-    left = uvec4(w == 0u ? rest : left.x, w == 1u ? rest : left.y,
-                 w == 2u ? rest : left.z, w == 3u ? rest : left.w);
+    left = mix(left, uvec4(word & (word - 1u)), is_w);
     return bit;
 }
 
@@ -120,14 +122,16 @@ uint take_lowest_bit(inout uvec4 left, out uint w) {
 // their orientation se (soft_occlusion.comp computes them). One function,
 // so that both modes evaluate the same f32 expressions.
 bool exact_blocks(vec3 l, vec3 n, float sigma, vec3 a, vec3 x, vec3 m0, vec3 m1, vec3 m2, float se) {
-    return sigma * dot(n, l - a) < 0.0 && se * dot(m0, l - x) > 0.0
-        && se * dot(m1, l - x) > 0.0 && se * dot(m2, l - x) > 0.0;
+    // all(), not &&: the same four comparisons without short-circuit
+    // branches (see take_lowest_bit).
+    return all(bvec4(sigma * dot(n, l - a) < 0.0, se * dot(m0, l - x) > 0.0,
+                     se * dot(m1, l - x) > 0.0, se * dot(m2, l - x) > 0.0));
 }
 
 // `bits` as word `wd` of a block's four (a select, not an indexed write:
 // lavapipe keeps locals in registers).
 uvec4 in_word(uint wd, uint bits) {
-    return uvec4(wd == 0u ? bits : 0u, wd == 1u ? bits : 0u, wd == 2u ? bits : 0u, wd == 3u ? bits : 0u);
+    return mix(uvec4(0u), uvec4(bits), equal(uvec4(wd), uvec4(0u, 1u, 2u, 3u)));
 }
 
 // The bits of `unsure` (light samples `first` + 0..127 of `samples`) whose
@@ -143,7 +147,7 @@ uvec4 exact_blocked_bits(samplerBuffer samples, uint first, uvec4 unsure, vec3 n
         uint w;
         uint bit = take_lowest_bit(left, w);
         vec3 l = texelFetch(samples, int(first + w * 32u + bit)).xyz;
-        got |= in_word(w, exact_blocks(l, n, sigma, a, x, m0, m1, m2, se) ? 1u << bit : 0u);
+        got |= in_word(w, mix(0u, 1u << bit, exact_blocks(l, n, sigma, a, x, m0, m1, m2, se)));
     }
     return got;
 }

@@ -397,7 +397,9 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, o
         if (box) {
             uvec4 ids = texelFetch(pairs_tb, int(4u * pi));
             ClusterPlane plane = triangle_cluster_plane(triangles_tb, ids.x);
-            uint rule = pair_meets(ids, tmin, tmax) ? chunk_rule(plane, lo, hi) : CLUSTER_LIGHT_SIDE;
+            bool meets = pair_meets(ids, tmin, tmax);
+            uint chunk = chunk_rule(plane, lo, hi);
+            uint rule = meets ? chunk : CLUSTER_LIGHT_SIDE;
             keep = rule == CLUSTER_KEEP;
             local_penumbra += rule == CLUSTER_OUTSIDE_PENUMBRA ? 1u : 0u;
             local_beyond += rule == CLUSTER_BEYOND_REACH ? 1u : 0u;
@@ -492,8 +494,11 @@ bool pair_culled(PairTexels f, uvec2 texel, uint own, vec3 x, mat3 turn_back, ou
     // Outside the influence region, or the sample's own triangle; x on
     // the plane: the segment does not cross it; x behind a closed
     // caster: only its front faces could block, and they do not cast.
-    return !pair_meets(ids, texel, texel) || own == global_triangle(ids.x)
-        || sx == 0.0 || isnan(sx) || (closed && sx < 0.0);
+    // (Each test in a local first: `||` over calls became branches, and
+    // lavapipe runs a branch's body for every lane, masked.)
+    bool outside = !pair_meets(ids, texel, texel);
+    bool own_triangle = own == global_triangle(ids.x);
+    return outside || own_triangle || sx == 0.0 || isnan(sx) || (closed && sx < 0.0);
 }
 
 // The rest of a pair that pair_culled kept: PAIR_PLANE_REJECTED,
@@ -506,9 +511,10 @@ uint pair_tail(vec3 x, vec3 o, float inv_r, vec3 ox, float lo_x, inout PairPlane
     vec3 ao = a - o;
     p.d0 = dot(ns, ao) * inv_r;
     float lo_a = EXACT_MASKS ? -1.0 - sphere_allowance(ao, inv_r) : -1.0;
-    if (!(p.d0 > lo_a)) {
-        return PAIR_PLANE_REJECTED; // the whole light is on x's side of T
-    }
+    // The whole light on x's side of T: rejected by T's plane (decided at
+    // the end, not by an early return: lavapipe runs the rest for every
+    // lane anyway, and a return adds a mask to all of it).
+    bool plane_rejected = !(p.d0 > lo_a);
     // The planes through x and each edge, facing out of T's
     // cone from x (one determinant orients all three alike).
     vec3 m0 = cross(a - x, b - x), m1 = cross(b - x, c - x), m2 = cross(c - x, a - x);
@@ -523,12 +529,16 @@ uint pair_tail(vec3 x, vec3 o, float inv_r, vec3 ox, float lo_x, inout PairPlane
     p.d2 = dot(p.u1, ox) * inv_r;
     p.u2 = (-se * inversesqrt(dot(m2, m2))) * m2;
     p.d3 = dot(p.u2, ox) * inv_r;
-    return p.d1 > lo_x && p.d2 > lo_x && p.d3 > lo_x ? PAIR_PASSED : PAIR_EDGE_REJECTED;
+    bool edges_pass = all(greaterThan(vec3(p.d1, p.d2, p.d3), vec3(lo_x)));
+    return plane_rejected ? PAIR_PLANE_REJECTED : (edges_pass ? PAIR_PASSED : PAIR_EDGE_REJECTED);
 }
 
 uint pair_planes_of(PairTexels f, uvec2 texel, uint own, vec3 x, vec3 o, float inv_r, vec3 ox,
                     float lo_x, mat3 turn_back, out PairPlanes p) {
-    return pair_culled(f, texel, own, x, turn_back, p) ? PAIR_CULLED : pair_tail(x, o, inv_r, ox, lo_x, p);
+    // Both parts, then a select (see pair_culled).
+    bool culled = pair_culled(f, texel, own, x, turn_back, p);
+    uint tail = pair_tail(x, o, inv_r, ox, lo_x, p);
+    return culled ? PAIR_CULLED : tail;
 }
 
 // The ball of the subgroup's samples whose lanes are `member`: centre
