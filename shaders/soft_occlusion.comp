@@ -977,7 +977,7 @@ void main() {
     if (subgroupElect() && sum_hull != 0u) {
         atomicAdd(counters[COUNTER_OUTSIDE_HULL], sum_hull);
     }
-#if EXACT_MASKS
+#if WEDGE_COMPILED
     uint sum_wedge = subgroupAdd(wedge_rejected);
     if (subgroupElect() && sum_wedge != 0u) {
         atomicAdd(counters[COUNTER_WEDGE_REJECTED], sum_wedge);

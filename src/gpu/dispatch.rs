@@ -35,11 +35,14 @@ pub fn storage<'a>(b: impl Into<BufferSlice<'a>>) -> Binding<'a> {
     Binding::storage(b)
 }
 
-/// The subgroup operations of the occlusion passes: ballot, and shuffle
-/// (each lane fetches one pair of a window and the others take it from
-/// that lane, since every lane tests the same pairs).
+/// The subgroup operations of the occlusion passes: ballot, shuffle (each
+/// lane fetches one pair of a window and the others take it from that
+/// lane, since every lane tests the same pairs; soft occlusion spreads a
+/// window's pairs over the lanes) and arithmetic (the counters' sums, and
+/// the spreading's prefix sums).
 pub fn require_occlusion_subgroup_ops(ctx: &GpuContext, pass: &str) -> Result<()> {
     let ops = vk::SubgroupFeatureFlags::BASIC
+        | vk::SubgroupFeatureFlags::ARITHMETIC
         | vk::SubgroupFeatureFlags::BALLOT
         | vk::SubgroupFeatureFlags::SHUFFLE;
     let info = ctx.info();
@@ -47,7 +50,7 @@ pub fn require_occlusion_subgroup_ops(ctx: &GpuContext, pass: &str) -> Result<()
         Ok(())
     } else {
         Err(Error::Vulkan(format!(
-            "{pass} needs subgroup ballot and shuffle in compute shaders, which \"{}\" lacks",
+            "{pass} needs subgroup arithmetic, ballot and shuffle in compute shaders, which \"{}\" lacks",
             info.name
         )))
     }

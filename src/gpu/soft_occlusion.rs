@@ -93,10 +93,11 @@ fn unit_entries(blocks: usize) -> u64 {
 pub struct SoftOcclusionPass {
     /// Every kernel by (kernel, alpha round, per-pixel rotation, wedge
     /// rule) (specialization constants `ALPHA`, `ROTATION` and
-    /// `WEDGE_RULE`): the plain ones made up front, the others when a light
-    /// first needs them. Kept for the pass's life, so that a command buffer
-    /// recorded before the wedge rule was turned off or on still holds
-    /// live pipelines.
+    /// `WEDGE_RULE`; the wedge rule keys only the exact kernel, the others
+    /// compile it out): the plain ones made up front, the others when a
+    /// light first needs them. Kept for the pass's life, so that a command
+    /// buffer recorded before the wedge rule was turned off or on still
+    /// holds live pipelines.
     pipelines: HashMap<(Kernel, bool, bool, bool), ComputePipeline>,
     /// Look-up mode: (slot, triangle, block) and unsure bits per entry
     /// (32 B), in [`UNSURE_SEGMENTS`] segments, kept across frames.
@@ -200,7 +201,10 @@ impl SoftOcclusionPass {
             .flat_map(|b| [Kernel::Sure(b), Kernel::Approx(b)])
             .chain([Kernel::Exact, Kernel::Unsure]);
         let pipelines = plain
-            .map(|k| Ok(((k, false, false, true), k.make(ctx, false, false, true)?)))
+            .map(|k| {
+                let wedge = wedge_key(k, true);
+                Ok(((k, false, false, wedge), k.make(ctx, false, false, wedge)?))
+            })
             .collect::<Result<_>>()?;
         Ok(SoftOcclusionPass {
             pipelines,
@@ -242,11 +246,11 @@ impl SoftOcclusionPass {
             want.extend(alpha_casters.then_some((Kernel::Unsure, true)));
         }
         for (kernel, alpha) in want {
+            let wedge = wedge_key(kernel, self.wedge_rule);
             if let std::collections::hash_map::Entry::Vacant(e) =
-                self.pipelines
-                    .entry((kernel, alpha, rotated, self.wedge_rule))
+                self.pipelines.entry((kernel, alpha, rotated, wedge))
             {
-                e.insert(kernel.make(ctx, alpha, rotated, self.wedge_rule)?);
+                e.insert(kernel.make(ctx, alpha, rotated, wedge)?);
             }
         }
         Ok(())
@@ -255,8 +259,9 @@ impl SoftOcclusionPass {
     /// The pipeline of `kernel` in the alpha round or not, with the
     /// per-pixel rotation or not (and the wedge rule as set).
     fn pipeline(&self, kernel: Kernel, alpha: bool, rotated: bool) -> Result<&ComputePipeline> {
+        let wedge = wedge_key(kernel, self.wedge_rule);
         self.pipelines
-            .get(&(kernel, alpha, rotated, self.wedge_rule))
+            .get(&(kernel, alpha, rotated, wedge))
             .ok_or_else(not_made)
     }
 
@@ -633,6 +638,14 @@ fn pixel_rotation_block(sl: &SoftLight) -> Vec<[u32; 4]> {
         }
     }
     rows
+}
+
+/// The wedge-rule flag a kernel's pipeline is made and kept with: the rule
+/// as set for the exact kernel, off for the others (their shaders compile
+/// it out, `WEDGE_COMPILED`), so that switching it builds no duplicate of
+/// theirs.
+fn wedge_key(kernel: Kernel, on: bool) -> bool {
+    on && kernel == Kernel::Exact
 }
 
 /// A soft occlusion pipeline: `chunk` pairs per work unit (specialization
