@@ -145,7 +145,7 @@ layout(set = 0, binding = 17) uniform usamplerBuffer list_sample_index_tb; // pe
 
 // The iterations of the in-place loops (unsure bits, and one per block
 // with bits) that one subgroup may run in the opaque round. Its other
-// loops run at most about 10.6 K iterations (four per kept pair, one per
+// loops run at most about 10.6 K iterations (at most four per kept pair, one per
 // block it lists and one per block whose in-place loop no lane enters,
 // MAX_KEPT pairs, and the windows', groups', compaction's and searches'),
 // so all of them stay below lavapipe's 65535 per subgroup (one SIMD
@@ -717,15 +717,14 @@ void main() {
                     // The hull rule for x itself.
                     bool outside_x = !culled && !beyond
                         && outside_hull(subgroupShuffle(ball, jj), x_seen, 0.0, HULL_MARGIN);
-                    // The planes' tail in a loop, not an `if`: lavapipe runs
-                    // an `if` body for every lane but skips a loop that no
-                    // lane enters, as where every lane culled the pair.
-                    uint rule = PAIR_CULLED;
-                    uint tail = culled || beyond || outside_x ? 0u : 1u;
-                    while (tail != 0u) {
-                        tail = 0u;
-                        rule = pair_tail(x, o, inv_r, ox, lo_x, p);
-                    }
+                    // The planes' tail for every lane, then a select: in a
+                    // loop that lanes which culled the pair skip (lavapipe
+                    // skips a loop no lane enters) it cost more than it
+                    // saved (a warm 256² frame, look-up mode:
+                    // torus_knot:20000 4070 -> 3949 M shader instructions,
+                    // ToyCar on a ground 7948 -> 7815 M; status.md, stop 57).
+                    uint tail_rule = pair_tail(x, o, inv_r, ox, lo_x, p);
+                    uint rule = culled || beyond || outside_x ? PAIR_CULLED : tail_rule;
                     if (!full) {
                         beyond_tests += beyond ? 1u : 0u;
                         hull_tests += outside_x ? 1u : 0u;

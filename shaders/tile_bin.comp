@@ -173,15 +173,10 @@ void main() {
                 uint n = uint(bitCount(o0) + bitCount(o1) + bitCount(o2) + bitCount(o3));
                 uint at = cluster_block_box(face, uvec2((w * 32u + shift) / CLUSTER_BLOCK, by));
                 vec4 block_lo = uintBitsToFloat(texelFetch(boxes_tb, int(at)));
-                // A loop of at most one turn: lavapipe skips a loop no lane
-                // enters, and runs an `if` for every lane.
                 bool test = n >= CLUSTER_BLOCK_MIN_TILES && block_lo.w != 0.0;
-                uint rule = CLUSTER_KEEP;
-                while (test) {
-                    vec3 block_hi = uintBitsToFloat(texelFetch(boxes_tb, int(at + 1u)).xyz);
-                    rule = bin_rule(plane, block_lo.xyz, block_hi);
-                    test = false;
-                }
+                vec3 block_hi = uintBitsToFloat(texelFetch(boxes_tb, int(at + 1u)).xyz);
+                uint block_rule = bin_rule(plane, block_lo.xyz, block_hi);
+                uint rule = test ? block_rule : CLUSTER_KEEP;
                 count_drops(rule, n, b);
                 uint keep = rule == CLUSTER_KEEP ? 0xffffffffu : 0u;
                 for (uint dy = 0u; dy < CLUSTER_BLOCK; dy++) {
