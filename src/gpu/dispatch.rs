@@ -37,9 +37,8 @@ pub fn storage<'a>(b: impl Into<BufferSlice<'a>>) -> Binding<'a> {
 
 /// The subgroup operations of the occlusion passes: ballot, shuffle (each
 /// lane fetches one pair of a window and the others take it from that
-/// lane, since every lane tests the same pairs; soft occlusion spreads a
-/// window's pairs over the lanes) and arithmetic (the counters' sums, and
-/// the spreading's prefix sums).
+/// lane, since every lane tests the same pairs) and arithmetic (the
+/// counters' sums, soft occlusion's in-place budget and list offsets).
 pub fn require_occlusion_subgroup_ops(ctx: &GpuContext, pass: &str) -> Result<()> {
     let ops = vk::SubgroupFeatureFlags::BASIC
         | vk::SubgroupFeatureFlags::ARITHMETIC
