@@ -38,7 +38,7 @@ layout(set = 0, binding = 12) uniform usamplerBuffer alpha_textures;
 layout(set = 0, binding = 13) uniform usamplerBuffer alpha_texels;
 
 void main() {
-    uint unit = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint unit = spread_workgroup();
     uint tiles_per_face = pc.more.z;
     uint res = pc.sizes.z;
     // more.w: the units the host read back, or ~0 when a caller's command

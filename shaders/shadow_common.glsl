@@ -202,6 +202,32 @@ uint linear_invocation() {
     return (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * WORKGROUP_1D + gl_LocalInvocationID.x;
 }
 
+// Lavapipe hands each of its T threads one contiguous run of a
+// dispatch's n workgroups (Mesa's lp_cs_tpool: n / T each, the remainder
+// one by one), so where the work is uneven along the index (a scene's busy
+// tiles, caster pairs of large regions next to each other) one thread gets
+// most of it and the others wait. The dispatches whose work is uneven
+// number their workgroups through spread_index instead: thread t's run
+// takes indices t, t + T, t + 2T, ..., so every thread walks the whole
+// range (and they walk it together, which keeps neighbouring work in the
+// shared cache; 64 interleaved runs per thread were measured slower).
+// SPREAD_THREADS is T (vulkan::DeviceInfo::dispatch_runs; 1, the identity,
+// on a GPU), set for every pipeline (vulkan::pipeline). A bijection on
+// [0, n). Twin: gpu::dispatch::spread_index.
+layout(constant_id = 9) const uint SPREAD_THREADS = 1u;
+uint spread_index(uint w, uint n) {
+    uint run = max(n / SPREAD_THREADS, 1u);
+    uint b = (w % run) * SPREAD_THREADS + w / run;
+    return w < run * SPREAD_THREADS ? b : w;
+}
+
+// This workgroup's index, spread (spread_index), in a dispatch of x by y
+// workgroups (x fastest, as lavapipe numbers them).
+uint spread_workgroup() {
+    uint w = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    return spread_index(w, gl_NumWorkGroups.x * gl_NumWorkGroups.y);
+}
+
 bool is_point_light() { return floatBitsToUint(pc.origin.w) == LIGHT_KIND_POINT; }
 
 // Point-light cube faces: forward, right, up (src/cpu/light_view.rs).

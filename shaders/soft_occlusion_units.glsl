@@ -27,7 +27,7 @@ struct OcclusionUnit {
 
 OcclusionUnit occlusion_unit() {
     OcclusionUnit u;
-    uint unit = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x + OCC_UNIT_BASE;
+    uint unit = spread_workgroup() + OCC_UNIT_BASE;
     uint tiles_per_face = pc.more.z;
     u.index = unit;
     u.exists = false;

@@ -102,7 +102,7 @@ uint occupied_tiles(uint face, uint ty, uint w, uint first, uint last) {
 }
 
 void main() {
-    uint i = linear_invocation();
+    uint i = spread_workgroup() * WORKGROUP_1D + gl_LocalInvocationID.x;
     if (i >= min(counters[COUNTER_PAIRS], pc.more.x)) {
         return;
     }

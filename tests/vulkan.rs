@@ -572,3 +572,56 @@ fn shader_division_rounds_like_ieee() {
     }
     finish(ctx);
 }
+
+/// `spread_workgroup` (shaders/shadow_common.glsl), the workgroup order of
+/// the passes whose work is uneven, against its twin
+/// `gpu::dispatch::spread_index`: the same index for every workgroup and a
+/// bijection, for the device's dispatch runs and forced ones, in 1D and
+/// 2D dispatches.
+#[test]
+fn spread_workgroups_match_their_twin() {
+    use alias_free_shadows::gpu::dispatch::{groups_2d, spread_index};
+    let ctx = context();
+    let device_runs = ctx.device().info().dispatch_runs();
+    if ctx.device().info().driver_name == "llvmpipe" {
+        assert!(device_runs >= 1);
+    } else {
+        assert_eq!(device_runs, 1);
+    }
+    for runs in [device_runs, 1, 2, 3, 7, 64] {
+        let pipeline = ctx
+            .create_compute_pipeline(&ComputePipelineDesc {
+                name: "spread_probe",
+                spirv: shaders::SPREAD_PROBE,
+                bindings: &[DescriptorKind::StorageBuffer],
+                push_constant_bytes: std::mem::size_of::<alias_free_shadows::gpu::shared::LightPush>()
+                    as u32,
+                specialization: &[(SPREAD_THREADS_ID, runs)],
+            })
+            .unwrap();
+        for n in [1u32, 2, 5, 63, 64, 65, 1000, 4097, 70_001] {
+            let grid = groups_2d(n);
+            let dispatched = grid[0] * grid[1];
+            let out = ctx
+                .create_buffer(BufferDesc::storage("spread", 4 * dispatched as u64))
+                .unwrap();
+            let mut rec = ctx.begin().unwrap();
+            let push = [0u8; std::mem::size_of::<alias_free_shadows::gpu::shared::LightPush>()];
+            rec.dispatch(&pipeline, &[Binding::storage(&out)], &push, grid)
+                .unwrap();
+            ctx.submit_and_wait(rec).unwrap();
+            let got: Vec<u32> = ctx.read_buffer(&out, 0, dispatched as usize).unwrap();
+            let mut seen = vec![false; dispatched as usize];
+            for (w, &b) in got.iter().enumerate() {
+                assert_eq!(
+                    b,
+                    spread_index(w as u32, dispatched, runs),
+                    "runs {runs}, {dispatched} workgroups, workgroup {w}"
+                );
+                assert!(!seen[b as usize], "runs {runs}, n {dispatched}: {b} twice");
+                seen[b as usize] = true;
+            }
+        }
+    }
+    finish(ctx);
+}

@@ -30,6 +30,22 @@ pub fn groups_2d(g: u32) -> [u32; 3] {
     }
 }
 
+/// Workgroup `w` of a dispatch of `n` as the passes whose work is uneven
+/// along the index number it on a device that splits a dispatch into
+/// `runs` contiguous runs, one per thread
+/// ([`DeviceInfo::dispatch_runs`](crate::vulkan::DeviceInfo::dispatch_runs)):
+/// run `t` takes `t, t + runs, t + 2 runs, ...`, so that every thread walks
+/// the whole range. A bijection on `0..n`. Twin of `spread_index` in
+/// `shaders/shadow_common.glsl`.
+pub fn spread_index(w: u32, n: u32, runs: u32) -> u32 {
+    let run = (n / runs).max(1);
+    if w < run * runs {
+        (w % run) * runs + w / run
+    } else {
+        w
+    }
+}
+
 /// A storage-buffer binding.
 pub fn storage<'a>(b: impl Into<BufferSlice<'a>>) -> Binding<'a> {
     Binding::storage(b)
@@ -52,5 +68,36 @@ pub fn require_occlusion_subgroup_ops(ctx: &GpuContext, pass: &str) -> Result<()
             "{pass} needs subgroup arithmetic, ballot and shuffle in compute shaders, which \"{}\" lacks",
             info.name
         )))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::spread_index;
+
+    /// A bijection on `0..n` for every run count, and run `t` of the
+    /// device's split (`n / runs` consecutive workgroups each) takes every
+    /// `runs`-th index from `t`.
+    #[test]
+    fn spread_index_is_a_bijection_that_interleaves_runs() {
+        for runs in 1..=9u32 {
+            for n in (0..300u32).chain([4096, 4097, 65_535, 70_001]) {
+                let mut seen = vec![false; n as usize];
+                for w in 0..n {
+                    let b = spread_index(w, n, runs);
+                    assert!(
+                        b < n && !seen[b as usize],
+                        "runs {runs}, n {n}, w {w} -> {b}"
+                    );
+                    seen[b as usize] = true;
+                }
+                let run = n / runs;
+                for t in 0..runs.min(n) {
+                    for j in 0..run {
+                        assert_eq!(spread_index(t * run + j, n, runs), j * runs + t);
+                    }
+                }
+            }
+        }
     }
 }

@@ -163,6 +163,27 @@ impl DeviceInfo {
         self.device_type == DeviceType::Cpu
     }
 
+    /// How many contiguous runs a dispatch's workgroups are split into, in
+    /// index order: lavapipe's compute thread pool gives each of its `T`
+    /// threads `n / T` consecutive workgroups of a dispatch of `n` (`T`:
+    /// `LP_NUM_THREADS`, else the CPUs this process may use), so the passes
+    /// whose work is uneven along the index interleave it by `T`
+    /// (`spread_index` in `shaders/shadow_common.glsl`; specialization
+    /// constant [`SPREAD_THREADS_ID`](crate::vulkan::SPREAD_THREADS_ID) of
+    /// every pipeline). 1 (no interleaving) on other devices. A wrong
+    /// guess costs only balance, never a result.
+    pub fn dispatch_runs(&self) -> u32 {
+        if self.driver_name != "llvmpipe" && !self.name.starts_with("llvmpipe") {
+            return 1;
+        }
+        let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let threads = std::env::var("LP_NUM_THREADS")
+            .ok()
+            .and_then(|v| v.trim().parse::<usize>().ok())
+            .unwrap_or(cpus);
+        threads.clamp(1, 64) as u32
+    }
+
     /// Reads everything from a physical device.
     fn query(instance: &ash::Instance, physical: vk::PhysicalDevice, index: usize) -> Self {
         let mut driver = vk::PhysicalDeviceDriverProperties::default();

@@ -97,6 +97,8 @@ pub use graphics::{
 };
 pub use image::{Image, ImageDesc};
 pub use instance::{Instance, ValidationLevel, ValidationMessages};
-pub use pipeline::{Binding, ComputePipeline, ComputePipelineDesc, DescriptorKind};
+pub use pipeline::{
+    Binding, ComputePipeline, ComputePipelineDesc, DescriptorKind, SPREAD_THREADS_ID,
+};
 pub use profiler::{PassTiming, Profiler};
 pub use shader::ShaderModule;

@@ -15,6 +15,12 @@ use super::image::Image;
 use super::shader::ShaderModule;
 use crate::{Error, Result};
 
+/// Specialization constant that every compute pipeline gets:
+/// [`DeviceInfo::dispatch_runs`](super::DeviceInfo::dispatch_runs)
+/// (`SPREAD_THREADS` in `shaders/shadow_common.glsl`), unless its
+/// description sets it.
+pub const SPREAD_THREADS_ID: u32 = 9;
+
 /// The kind of one descriptor binding.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum DescriptorKind {
@@ -210,8 +216,17 @@ impl ComputePipeline {
         pipeline.layout = unsafe { device.raw().create_pipeline_layout(&layout_info, None) }
             .map_err(|e| err("pipeline layout", e))?;
 
-        let entries: Vec<_> = desc
-            .specialization
+        // Every pipeline gets the device's dispatch runs unless its
+        // description sets them (shaders that do not declare the constant
+        // ignore it).
+        let mut specialization = desc.specialization.to_vec();
+        if !specialization
+            .iter()
+            .any(|&(id, _)| id == SPREAD_THREADS_ID)
+        {
+            specialization.push((SPREAD_THREADS_ID, device.info().dispatch_runs()));
+        }
+        let entries: Vec<_> = specialization
             .iter()
             .enumerate()
             .map(|(i, &(id, _))| vk::SpecializationMapEntry {
@@ -220,8 +235,7 @@ impl ComputePipeline {
                 size: 4,
             })
             .collect();
-        let data: Vec<u8> = desc
-            .specialization
+        let data: Vec<u8> = specialization
             .iter()
             .flat_map(|&(_, v)| v.to_ne_bytes())
             .collect();
