@@ -375,6 +375,10 @@ impl fmt::Display for DeviceInfo {
                 ),
             ),
             (
+                "dispatch runs (threads a dispatch is split over)",
+                self.dispatch_runs().to_string(),
+            ),
+            (
                 "timestampPeriod",
                 format!("{} ns", self.timestamp_period_ns),
             ),
