@@ -47,7 +47,16 @@ struct ClusterPlane {
     float area2; // |cross(b - a, c - a)|
     float side;  // the light's side of the plane: +1, -1, or 0 (the light straddles it: no light-side rule)
     bool closed;
+    // What the rules recompute for every box otherwise (binning tests a
+    // caster against many): cluster_margin's terms that do not depend on
+    // the box, and the caster's ball (caster_ball) and its caster_sphere.
+    float margin_base;
+    vec4 ball;
+    vec2 sphere;
 };
+
+vec4 caster_ball(vec3 a, vec3 b, vec3 c);
+vec2 caster_sphere(vec3 o, vec4 ball);
 
 // The supporting plane of triangle (a, b, c) and the light's side of it
 // (the whole light's bounding sphere beyond the margin, or a directional
@@ -63,6 +72,10 @@ ClusterPlane cluster_plane(vec3 a, vec3 b, vec3 c, bool closed) {
     cp.area2 = len;
     cp.closed = closed;
     cp.side = 0.0;
+    float r_light = is_soft() ? pc.soft_light.x : 0.0;
+    cp.margin_base = length(a) + length(pc.origin.xyz) + r_light;
+    cp.ball = caster_ball(a, b, c);
+    cp.sphere = caster_sphere(pc.origin.xyz, cp.ball);
     if (!(len > 0.0) || isinf(len) || any(isnan(cp.n))) {
         cp.n = vec3(0.0);
         cp.closed = false;
@@ -182,8 +195,7 @@ bool outside_penumbra(ClusterPlane cp, vec3 bc, vec3 bh, float m) {
 // The rules' margin for the box [lo, hi]: CLUSTER_MARGIN of the
 // magnitudes involved.
 float cluster_margin(ClusterPlane cp, vec3 lo, vec3 hi) {
-    float r_light = is_soft() ? pc.soft_light.x : 0.0;
-    float scale = length(cp.a) + length(pc.origin.xyz) + r_light + length(max(abs(lo), abs(hi)));
+    float scale = cp.margin_base + length(max(abs(lo), abs(hi)));
     return CLUSTER_MARGIN * scale;
 }
 
@@ -303,8 +315,8 @@ uint far_rule(ClusterPlane cp, vec3 lo, vec3 hi) {
     // The reach rule: the box's farthest corner from the light's centre.
     vec3 o = pc.origin.xyz;
     float reach = max(length(max(abs(lo - o), abs(hi - o))), pc.soft_light.x);
-    vec4 ball = caster_ball(cp.a, cp.b, cp.c);
-    bool beyond = beyond_reach(caster_sphere(o, ball), reach, REACH_MARGIN_BOX);
+    vec4 ball = cp.ball;
+    bool beyond = beyond_reach(cp.sphere, reach, REACH_MARGIN_BOX);
     // The hull rule for a ball holding the box (its radius measured from
     // the rounded centre, and rounded up).
     float rb = length(max(abs(hi - c), abs(lo - c))) * (1.0 + 1e-6);
