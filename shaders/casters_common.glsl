@@ -18,6 +18,8 @@ layout(set = 0, binding = 3) writeonly buffer Pairs { CasterFace pairs[]; };
 layout(set = 0, binding = 4) buffer Counters { uint counters[]; };
 // (triangle, face mask | CLIP_ITEM_RASTERIZED): the pairs left to casters_clip.
 layout(set = 0, binding = 5) buffer ClipItems { uvec2 clip_items[]; };
+// The soft pairs that are large (large_pair), by their slot in `pairs`.
+layout(set = 0, binding = 6) writeonly buffer LargePairs { uint large_pairs[]; };
 
 // Clip item flag: the triangle already has a pair from casters_setup.
 #define CLIP_ITEM_RASTERIZED 0x100u
@@ -101,6 +103,9 @@ void append_pair(uint i, uint f, uvec4 rect, vec4 e0, vec4 e1, vec4 e2) {
         cf.e1 = e1;
         cf.e2 = e2;
         pairs[slot] = cf;
+        if (is_soft() && large_pair(rect.xy, rect.zw)) {
+            large_pairs[atomicAdd(counters[COUNTER_LARGE_PAIRS], 1u)] = slot;
+        }
     }
 }
 

@@ -24,8 +24,8 @@
 // tiles per occupancy word: a block's columns lie in one word.)
 #define CLUSTER_BLOCK 4u
 #define CLUSTER_BLOCK_MIN_TILES 4u
-// Pairs whose rectangle spans more tiles than this go by blocks.
-#define CLUSTER_BLOCK_PAIR_TILES 64u
+// Pairs whose rectangle spans more than CLUSTER_BLOCK_PAIR_TILES tiles
+// (shadow_common.glsl: large_pair) go by blocks.
 
 // What the rules found (cull_rule).
 #define CLUSTER_KEEP 0u

@@ -107,7 +107,20 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 32u;
 // bin_rule).
 #define COUNTER_BIN_BEYOND_REACH 26
 #define COUNTER_BIN_OUTSIDE_HULL 27
-#define COUNTER_COUNT 28
+// Caster setup, soft shadows: the pairs listed as large (large_pair).
+#define COUNTER_LARGE_PAIRS 28
+#define COUNTER_COUNT 29
+
+// Soft pairs whose rectangle spans more tiles than this are large: tile
+// binning tests them against blocks of tiles first (tile_bin.comp,
+// BY_BLOCKS), and caster setup lists them apart, so that binning's
+// pipeline for them runs with every lane on one (they are a few in a
+// hundred on a car, a quarter on a torus knot).
+#define CLUSTER_BLOCK_PAIR_TILES 64u
+bool large_pair(uvec2 rmin, uvec2 rmax) {
+    uvec2 span = rmax / TILE - rmin / TILE + 1u;
+    return span.x * span.y > CLUSTER_BLOCK_PAIR_TILES;
+}
 
 // Frame-wide parameters (push constants).
 struct LightPush {

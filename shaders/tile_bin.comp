@@ -35,6 +35,10 @@ layout(set = 0, binding = 7) uniform usamplerBuffer triangles_tb; // GpuTriangle
 // without the occupancy look-ups and the rules (the same tiles, so the
 // lists equal the count's).
 layout(set = 0, binding = 8) buffer PairTiles { uint pair_tiles[]; };
+// The large pairs (shadow_common.glsl: large_pair) by index: the BY_BLOCKS
+// pipeline's invocations, one each, so that its lanes are all busy (over
+// all pairs, most lanes had none).
+layout(set = 0, binding = 9) uniform usamplerBuffer large_pairs_tb;
 
 // What binning found for a pair (the count's drops per rule, and the
 // tiles kept of a pair of few tiles).
@@ -102,10 +106,12 @@ uint occupied_tiles(uint face, uint ty, uint w, uint first, uint last) {
 }
 
 void main() {
-    uint i = spread_workgroup() * WORKGROUP_1D + gl_LocalInvocationID.x;
-    if (i >= min(counters[COUNTER_PAIRS], pc.more.x)) {
+    uint k = spread_workgroup() * WORKGROUP_1D + gl_LocalInvocationID.x;
+    uint listed = BY_BLOCKS != 0u ? counters[COUNTER_LARGE_PAIRS] : counters[COUNTER_PAIRS];
+    if (k >= min(listed, pc.more.x)) {
         return;
     }
+    uint i = BY_BLOCKS != 0u ? texelFetch(large_pairs_tb, int(k)).x : k;
     CasterFace cf = pairs[i];
     uvec2 rmin = pair_rect_min(cf.ids), rmax = pair_rect_max(cf.ids);
     uvec2 t0 = rmin / TILE, t1 = rmax / TILE;
@@ -121,8 +127,8 @@ void main() {
     PairBins b = PairBins(0u, 0u, 0u, 0u, 0u);
     uvec2 span = t1 - t0 + 1u;
     bool few = span.x * span.y <= 32u;
-    if ((CLUSTERS != 0u && span.x * span.y > CLUSTER_BLOCK_PAIR_TILES) != (BY_BLOCKS != 0u)) {
-        return; // the other pipeline's pair
+    if ((CLUSTERS != 0u && large_pair(rmin, rmax)) != (BY_BLOCKS != 0u)) {
+        return; // the other pipeline's pair (BY_BLOCKS: none, its list holds only its own)
     }
     if (SCATTER != 0u) {
         // A loop, not an `if`: lavapipe skips a loop no lane enters.

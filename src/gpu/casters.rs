@@ -27,6 +27,7 @@ pub struct CasterPass {
     clip_args: ComputePipeline,
     clip: ComputePipeline,
     pair_args: ComputePipeline,
+    large_pair_args: ComputePipeline,
     /// Per triangle: its planes (`CasterPlanes`, 80 B).
     pub planes: GrowBuffer,
     /// Per (triangle, face): `CasterFace` (64 B); the first
@@ -39,6 +40,13 @@ pub struct CasterPass {
     /// Indirect workgroup counts of one invocation per written pair (tile
     /// binning's dispatches).
     pub pair_dispatch: GrowBuffer,
+    /// Soft runs: the slots in `pairs` of the large pairs (`large_pair`
+    /// in `shadow_common.glsl`), the first `counters[COUNTER_LARGE_PAIRS]`
+    /// written, which tile binning's by-blocks pipeline takes one per
+    /// invocation.
+    pub large_pairs: GrowBuffer,
+    /// Indirect workgroup counts of one invocation per large pair.
+    pub large_pair_dispatch: GrowBuffer,
 }
 
 impl CasterPass {
@@ -48,6 +56,7 @@ impl CasterPass {
         let casters = [
             DescriptorKind::UniformTexelBuffer,
             DescriptorKind::UniformBuffer,
+            sb,
             sb,
             sb,
             sb,
@@ -87,12 +96,23 @@ impl CasterPass {
                 &[sb; 2],
                 &[(1, 1)],
             )?,
+            large_pair_args: make(
+                "casters_large_pair_args",
+                shaders::CASTERS_CLIP_ARGS,
+                &[sb; 2],
+                &[(1, 2)],
+            )?,
             planes: GrowBuffer::storage("caster_planes"),
             pairs: GrowBuffer::storage("caster_faces"),
             clip_items: GrowBuffer::storage("caster_clip_items"),
             clip_dispatch: GrowBuffer::new(args.clone()),
             pair_dispatch: GrowBuffer::new(BufferDesc {
                 name: "caster_pair_args".into(),
+                ..args.clone()
+            }),
+            large_pairs: GrowBuffer::storage("caster_large_pairs"),
+            large_pair_dispatch: GrowBuffer::new(BufferDesc {
+                name: "caster_large_pair_args".into(),
                 ..args
             }),
         })
@@ -105,6 +125,9 @@ impl CasterPass {
         self.clip_items.get(ctx, 8 * frame.nt as u64)?;
         self.clip_dispatch.get(ctx, 16)?;
         self.pair_dispatch.get(ctx, 16)?;
+        self.large_pairs
+            .get(ctx, 4 * frame.pair_capacity.max(1) as u64)?;
+        self.large_pair_dispatch.get(ctx, 16)?;
         Ok(())
     }
 
@@ -127,6 +150,7 @@ impl CasterPass {
                 storage(&self.pairs),
                 storage(counters),
                 storage(&self.clip_items),
+                storage(&self.large_pairs),
             ];
             rec.dispatch(setup, &casters, pc, groups(nt))?;
             rec.barrier(Barrier::ComputeToCompute);
@@ -137,6 +161,8 @@ impl CasterPass {
             rec.barrier(Barrier::ComputeToCompute);
             let args = [storage(counters), storage(&self.pair_dispatch)];
             rec.dispatch(&self.pair_args, &args, pc, [1, 1, 1])?;
+            let args = [storage(counters), storage(&self.large_pair_dispatch)];
+            rec.dispatch(&self.large_pair_args, &args, pc, [1, 1, 1])?;
             rec.barrier(Barrier::ComputeToIndirect);
             Ok(())
         })
@@ -144,6 +170,6 @@ impl CasterPass {
 
     /// Bytes this run binds.
     pub fn bytes(&self) -> u64 {
-        self.planes.len() + self.pairs.len() + self.clip_items.len()
+        self.planes.len() + self.pairs.len() + self.clip_items.len() + self.large_pairs.len()
     }
 }

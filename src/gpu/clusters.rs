@@ -119,8 +119,10 @@ mod tests {
             define("CLUSTER_BLOCK_MIN_TILES"),
             Some(CLUSTER_BLOCK_MIN_TILES as u64)
         );
+        // In shadow_common.glsl: caster setup lists the large pairs too.
+        let shadow_common = include_str!("../../shaders/shadow_common.glsl");
         assert_eq!(
-            define("CLUSTER_BLOCK_PAIR_TILES"),
+            crate::gpu::shared::tests::glsl_define(shadow_common, "CLUSTER_BLOCK_PAIR_TILES"),
             Some(CLUSTER_BLOCK_PAIR_TILES as u64)
         );
     }

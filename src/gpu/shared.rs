@@ -234,9 +234,12 @@ pub mod counter {
     /// Tile binning: (pair, tile) bins dropped because the caster's ball
     /// lies outside the hull of the tile box's ball and the light (soft).
     pub const BIN_OUTSIDE_HULL: usize = 27;
+    /// Caster setup, soft shadows: the large pairs listed for tile
+    /// binning's by-blocks pipeline (`large_pair` in `shadow_common.glsl`).
+    pub const LARGE_PAIRS: usize = 28;
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.
-    pub const COUNT: usize = 28;
+    pub const COUNT: usize = 29;
 
     /// The (low, high) slot pairs that hold 64-bit sums (the high word
     /// right after the low one: `count_wide` in soft_occlusion.comp).
@@ -419,6 +422,7 @@ pub(crate) mod tests {
             ("OUTSIDE_HULL", counter::OUTSIDE_HULL),
             ("BIN_BEYOND_REACH", counter::BIN_BEYOND_REACH),
             ("BIN_OUTSIDE_HULL", counter::BIN_OUTSIDE_HULL),
+            ("LARGE_PAIRS", counter::LARGE_PAIRS),
             ("COUNT", counter::COUNT),
         ] {
             assert_eq!(

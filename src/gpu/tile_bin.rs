@@ -106,7 +106,7 @@ impl TileBinPass {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let sb = DescriptorKind::StorageBuffer;
         let tb = DescriptorKind::UniformTexelBuffer;
-        let bin_bindings = [sb, sb, sb, tb, sb, tb, tb, tb, sb];
+        let bin_bindings = [sb, sb, sb, tb, sb, tb, tb, tb, sb, tb];
         let make = |name, spirv, bindings: &[DescriptorKind], spec: &[(u32, u32)]| {
             ctx.create_compute_pipeline(&ComputePipelineDesc {
                 name,
@@ -265,6 +265,7 @@ impl TileBinPass {
                 Binding::uniform_texel(&clusters.boxes, RGBA32UI),
                 Binding::uniform_texel(triangles, RGBA32UI),
                 storage(&self.pair_tiles),
+                Binding::uniform_texel(&casters.large_pairs, R32UI),
             ];
             self.dispatch_bins(rec, &self.count, soft.is_some(), &bindings, pc, casters)?;
             let (units, per_tile) = match soft {
@@ -333,6 +334,7 @@ impl TileBinPass {
                 Binding::uniform_texel(&clusters.boxes, RGBA32UI),
                 Binding::uniform_texel(triangles, RGBA32UI),
                 storage(&self.pair_tiles),
+                Binding::uniform_texel(&casters.large_pairs, R32UI),
             ];
             self.dispatch_bins(rec, &self.scatter, soft, &bindings, pc, casters)
         })
@@ -358,8 +360,13 @@ impl TileBinPass {
         } else {
             &pipelines[..1]
         };
-        for pipeline in used.iter().rev() {
-            let args = casters.pair_dispatch.buffer();
+        // Soft: the by-blocks pipeline over the large pairs' list.
+        for (k, pipeline) in used.iter().enumerate().rev() {
+            let args = if soft && k == 1 {
+                casters.large_pair_dispatch.buffer()
+            } else {
+                casters.pair_dispatch.buffer()
+            };
             rec.dispatch_indirect(pipeline, bindings, pc, args)?;
             rec.barrier(Barrier::ComputeToCompute);
         }
