@@ -45,7 +45,7 @@ layout(set = 0, binding = 1) buffer Fit { uint fit_keys[]; }; // 8 per face: xmi
 void main() {
     FIT_FACES(FIT_FACE_DECL)
     // Workgroup w reads FIT_PER_LANE blocks of WORKGROUP_1D consecutive samples.
-    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint group = workgroup_index();
     uint first = group * FIT_PER_LANE * WORKGROUP_1D + gl_LocalInvocationID.x;
     for (uint r = 0u; r < FIT_PER_LANE; r++) {
         uint i = first + r * WORKGROUP_1D;

@@ -211,8 +211,14 @@ bool caster_in_class(uint flags) {
 // Soft shadows: the light is the bounding sphere (origin, R) of its samples.
 bool is_soft() { return pc.soft.y != 0u; }
 
+// This workgroup's index in a dispatch of x by y workgroups (x fastest,
+// as groups_2d lays them out and lavapipe numbers them).
+uint workgroup_index() {
+    return gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+}
+
 uint linear_invocation() {
-    return (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * WORKGROUP_1D + gl_LocalInvocationID.x;
+    return workgroup_index() * WORKGROUP_1D + gl_LocalInvocationID.x;
 }
 
 // Lavapipe hands each of its T threads one contiguous run of a
@@ -234,11 +240,9 @@ uint spread_index(uint w, uint n) {
     return w < run * SPREAD_THREADS ? b : w;
 }
 
-// This workgroup's index, spread (spread_index), in a dispatch of x by y
-// workgroups (x fastest, as lavapipe numbers them).
+// This workgroup's index (workgroup_index), spread (spread_index).
 uint spread_workgroup() {
-    uint w = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-    return spread_index(w, gl_NumWorkGroups.x * gl_NumWorkGroups.y);
+    return spread_index(workgroup_index(), gl_NumWorkGroups.x * gl_NumWorkGroups.y);
 }
 
 bool is_point_light() { return floatBitsToUint(pc.origin.w) == LIGHT_KIND_POINT; }

@@ -653,7 +653,7 @@ void main() {
 #endif
 #if SURE
         // This unit's segment of the unsure list (by its index in the dispatch).
-        uint segment = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) % UNSURE_SEGMENTS;
+        uint segment = workgroup_index() % UNSURE_SEGMENTS;
 #endif
 #if EXACT_MASKS
         // Exact mode's group rules hold beyond twice the per-sample test's

@@ -9,5 +9,5 @@ layout(local_size_x = 1) in;
 layout(set = 0, binding = 0) writeonly buffer Spread { uint spread[]; };
 
 void main() {
-    spread[gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x] = spread_workgroup();
+    spread[workgroup_index()] = spread_workgroup();
 }

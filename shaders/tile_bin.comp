@@ -127,8 +127,8 @@ void main() {
     PairBins b = PairBins(0u, 0u, 0u, 0u, 0u);
     uvec2 span = t1 - t0 + 1u;
     bool few = span.x * span.y <= 32u;
-    if ((CLUSTERS != 0u && large_pair(rmin, rmax)) != (BY_BLOCKS != 0u)) {
-        return; // the other pipeline's pair (BY_BLOCKS: none, its list holds only its own)
+    if (BY_BLOCKS == 0u && CLUSTERS != 0u && large_pair(rmin, rmax)) {
+        return; // the BY_BLOCKS pipeline's pair (its list holds only those)
     }
     if (SCATTER != 0u) {
         // A loop, not an `if`: lavapipe skips a loop no lane enters.

@@ -38,7 +38,7 @@ pub struct CasterPass {
     /// The clip pass's indirect workgroup counts.
     clip_dispatch: GrowBuffer,
     /// Indirect workgroup counts of one invocation per written pair (tile
-    /// binning's dispatches).
+    /// binning's dispatches over all pairs).
     pub pair_dispatch: GrowBuffer,
     /// Soft runs: the slots in `pairs` of the large pairs (`large_pair`
     /// in `shadow_common.glsl`), the first `counters[COUNTER_LARGE_PAIRS]`
@@ -125,8 +125,7 @@ impl CasterPass {
         self.clip_items.get(ctx, 8 * frame.nt as u64)?;
         self.clip_dispatch.get(ctx, 16)?;
         self.pair_dispatch.get(ctx, 16)?;
-        self.large_pairs
-            .get(ctx, 4 * frame.pair_capacity.max(1) as u64)?;
+        self.large_pairs.get(ctx, 4 * frame.pair_capacity as u64)?;
         self.large_pair_dispatch.get(ctx, 16)?;
         Ok(())
     }

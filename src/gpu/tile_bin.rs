@@ -355,19 +355,16 @@ impl TileBinPass {
         pc: &[u8],
         casters: &CasterPass,
     ) -> Result<()> {
-        let used = if soft {
-            &pipelines[1..]
+        let [hard, rows, blocks] = pipelines;
+        let (pairs, large) = (&casters.pair_dispatch, &casters.large_pair_dispatch);
+        let runs: &[(&ComputePipeline, &GrowBuffer)] = if soft {
+            // The large pairs' list first, then the others.
+            &[(blocks, large), (rows, pairs)]
         } else {
-            &pipelines[..1]
+            &[(hard, pairs)]
         };
-        // Soft: the by-blocks pipeline over the large pairs' list.
-        for (k, pipeline) in used.iter().enumerate().rev() {
-            let args = if soft && k == 1 {
-                casters.large_pair_dispatch.buffer()
-            } else {
-                casters.pair_dispatch.buffer()
-            };
-            rec.dispatch_indirect(pipeline, bindings, pc, args)?;
+        for &(pipeline, args) in runs {
+            rec.dispatch_indirect(pipeline, bindings, pc, args.buffer())?;
             rec.barrier(Barrier::ComputeToCompute);
         }
         Ok(())
