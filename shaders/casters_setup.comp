@@ -28,9 +28,12 @@ void fold_image(LightFace lf, vec3 p, inout vec2 lo, inout vec2 hi) {
 // light's silhouette (seen from each vertex) through the vertex, to the
 // farthest view sample's depth; plus its edges' crossings of that depth.
 // A vertex as near as the light's extent makes the region the whole face.
+// Each pair carries its triangle (CasterFace, soft pairs), so that binning
+// and occlusion read a pair and its vertices from one 64-byte record.
 // No twin of its own: tests/soft_shadows.rs checks that the regions drop
 // no blocking caster (the GPU masks against a brute force without regions).
-void soft_caster(uint i, vec3 v[3], vec3 n, bool closed) {
+void soft_caster(uint i, vec3 v[3], vec3 n, bool closed, uint flags) {
+    uint alpha_record = texelFetch(triangles_tb, int(3u * i + 2u)).w;
     vec3 o = pc.origin.xyz;
     float R = pc.soft_light.x;
     uint degree = uint(pc.soft_light.y);
@@ -114,7 +117,8 @@ void soft_caster(uint i, vec3 v[3], vec3 n, bool closed) {
                 }
             }
         }
-        append_pair(i, f, rect, vec4(0.0), vec4(0.0), vec4(0.0));
+        append_pair(i, f, rect, vec4(v[0], 0.0), vec4(v[1], uintBitsToFloat(flags)),
+                    vec4(v[2], uintBitsToFloat(alpha_record)));
         any_face = true;
     }
     atomicAdd(counters[any_face ? COUNTER_RASTERIZED : COUNTER_CULLED], 1u);
@@ -139,7 +143,7 @@ void main() {
     vec3 v[3] = vec3[3](triangle_vertex(i, 0u), triangle_vertex(i, 1u), triangle_vertex(i, 2u));
     vec3 n = cross(v[1] - v[0], v[2] - v[0]);
     if (SOFT_SETUP != 0u) {
-        soft_caster(i, v, n, closed);
+        soft_caster(i, v, n, closed, flags);
         return;
     }
     CasterPlanes cp = no_planes();

@@ -94,14 +94,13 @@ ClusterPlane cluster_plane(vec3 a, vec3 b, vec3 c, bool closed) {
     return cp;
 }
 
-// The ClusterPlane of triangle i of `triangles` (GpuTriangle: 3 texels,
-// camera-relative vertices, TRIANGLE_CLOSED in the first texel's w).
-ClusterPlane triangle_cluster_plane(usamplerBuffer triangles, uint i) {
-    uvec4 t0 = texelFetch(triangles, int(3u * i));
-    vec3 a = uintBitsToFloat(t0.xyz);
-    vec3 b = uintBitsToFloat(texelFetch(triangles, int(3u * i + 1u)).xyz);
-    vec3 c = uintBitsToFloat(texelFetch(triangles, int(3u * i + 2u)).xyz);
-    return cluster_plane(a, b, c, (t0.w & TRIANGLE_CLOSED) != 0u);
+// The ClusterPlane of a soft pair's caster, from the pair's CasterFace
+// texels e0..e2 (shadow_common.glsl: soft_pair_triangle).
+ClusterPlane soft_pair_cluster_plane(uvec4 e0, uvec4 e1, uvec4 e2) {
+    uvec4 t0, t1, t2;
+    soft_pair_triangle(e0, e1, e2, t0, t1, t2);
+    return cluster_plane(uintBitsToFloat(t0.xyz), uintBitsToFloat(t1.xyz), uintBitsToFloat(t2.xyz),
+                         (t0.w & TRIANGLE_CLOSED) != 0u);
 }
 
 // 16 f32 ulps: the rounding bound of a cross product or determinant of

@@ -109,7 +109,8 @@ layout(constant_id = 7) const uint WEDGE_RULE = 1u;
 #define FOR_BLOCKS(M) M(0) FOR_BLOCK_1(M) FOR_BLOCK_2(M) FOR_BLOCK_3(M) FOR_BLOCK_4(M) FOR_BLOCK_5(M) FOR_BLOCK_6(M) FOR_BLOCK_7(M)
 
 layout(set = 0, binding = 0) uniform usamplerBuffer pairs_tb;     // CasterFace: 4 texels
-layout(set = 0, binding = 1) uniform usamplerBuffer triangles_tb; // GpuTriangle: 3 texels
+// Binding 1 (the triangles) is in the layout but not read: a pair carries
+// its triangle (soft_pair_triangle).
 layout(set = 0, binding = 2) readonly buffer TileOffsets { uint tile_offsets[]; };
 layout(set = 0, binding = 3) uniform usamplerBuffer tile_pairs_tb;
 layout(set = 0, binding = 4) readonly buffer Counts { uint counts[]; };
@@ -396,7 +397,9 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, o
         bool keep = true;
         if (box) {
             uvec4 ids = texelFetch(pairs_tb, int(4u * pi));
-            ClusterPlane plane = triangle_cluster_plane(triangles_tb, ids.x);
+            ClusterPlane plane = soft_pair_cluster_plane(texelFetch(pairs_tb, int(4u * pi + 1u)),
+                                                         texelFetch(pairs_tb, int(4u * pi + 2u)),
+                                                         texelFetch(pairs_tb, int(4u * pi + 3u)));
             bool meets = pair_meets(ids, tmin, tmax);
             uint chunk = chunk_rule(plane, lo, hi);
             uint rule = meets ? chunk : CLUSTER_LIGHT_SIDE;
@@ -446,12 +449,13 @@ struct PairTexels {
     uvec4 ids, t0, t1, t2;
 };
 
+// A pair's texels, all from its own record (soft pairs carry their
+// triangle: soft_pair_triangle).
 PairTexels fetch_pair(uint pi) {
     PairTexels f;
     f.ids = texelFetch(pairs_tb, int(4u * pi));
-    f.t0 = texelFetch(triangles_tb, int(3u * f.ids.x));
-    f.t1 = texelFetch(triangles_tb, int(3u * f.ids.x + 1u));
-    f.t2 = texelFetch(triangles_tb, int(3u * f.ids.x + 2u));
+    soft_pair_triangle(texelFetch(pairs_tb, int(4u * pi + 1u)), texelFetch(pairs_tb, int(4u * pi + 2u)),
+                       texelFetch(pairs_tb, int(4u * pi + 3u)), f.t0, f.t1, f.t2);
     return f;
 }
 

@@ -29,7 +29,8 @@ layout(set = 0, binding = 4) writeonly buffer TilePairs { uint tile_pairs[]; };
 // occupancy bits (occupancy_word), which binning reads once per row word.
 layout(set = 0, binding = 5) uniform usamplerBuffer tile_occupancy_tb;
 layout(set = 0, binding = 6) uniform usamplerBuffer boxes_tb; // per tile: lo (w: valid), hi (clusters_bounds), float bits
-layout(set = 0, binding = 7) uniform usamplerBuffer triangles_tb; // GpuTriangle: 3 texels
+// Binding 7 (the triangles) is in the layout but not read: a soft pair
+// carries its triangle (soft_pair_triangle), and hard pairs need none.
 // Per pair whose rectangle spans at most 32 tiles: the tiles the count
 // kept, bit (ty - t0.y) * columns + (tx - t0.x). The scatter writes those
 // without the occupancy look-ups and the rules (the same tiles, so the
@@ -122,7 +123,7 @@ void main() {
     ClusterPlane plane;
     plane.n = vec3(0.0);
     if (CLUSTERS != 0u) {
-        plane = triangle_cluster_plane(triangles_tb, cf.ids.x);
+        plane = soft_pair_cluster_plane(floatBitsToUint(cf.e0), floatBitsToUint(cf.e1), floatBitsToUint(cf.e2));
     }
     PairBins b = PairBins(0u, 0u, 0u, 0u, 0u);
     uvec2 span = t1 - t0 + 1u;

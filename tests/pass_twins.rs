@@ -221,6 +221,25 @@ fn check_bins(
     let c: Vec<u32> = read(ctx, &passes.counters, counter::COUNT);
     let pair_count = c[counter::PAIRS] as usize;
     let gpu_pairs: Vec<GpuCasterFace> = read(ctx, &passes.casters.pairs, pair_count);
+    if soft {
+        // A soft pair carries its triangle bit for bit (shadow_common.glsl,
+        // CasterFace), which binning and occlusion read instead of the
+        // triangles.
+        let bits = |v: [f32; 3], w: u32| [v[0].to_bits(), v[1].to_bits(), v[2].to_bits(), w];
+        for (k, p) in gpu_pairs.iter().enumerate() {
+            let t = &inp.gpu_triangles[p.ids[0] as usize];
+            let want = [
+                bits(t.v0, 0),
+                bits(t.v1, t.flags),
+                bits(t.v2, t.alpha_record),
+            ];
+            assert_eq!(
+                p.edges.map(|e| e.map(f32::to_bits)),
+                want,
+                "pair {k}: its triangle"
+            );
+        }
+    }
     let pairs: Vec<_> = gpu_pairs.iter().map(caster_face_from_gpu).collect();
     let triangles: Vec<([Vec3; 3], bool)> = inp
         .gpu_triangles

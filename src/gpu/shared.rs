@@ -342,7 +342,10 @@ pub struct GpuCasterPlanes {
 pub struct GpuCasterFace {
     /// triangle, face, rect min (x | y << 16), rect max.
     pub ids: [u32; 4],
-    /// Texel-space edges (a, b, c, valid).
+    /// Hard pairs: texel-space edges (a, b, c; the first's w the x margin,
+    /// 0 where there are none, the second's the y margin). Soft pairs: the
+    /// triangle's vertices as in [`GpuTriangle`], bit for bit, with w 0,
+    /// the `TRIANGLE_*` flags' bits and the alpha record's.
     pub edges: [[f32; 4]; 3],
 }
 
