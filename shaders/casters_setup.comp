@@ -21,6 +21,33 @@ void fold_image(LightFace lf, vec3 p, inout vec2 lo, inout vec2 hi) {
     hi = max(hi, tt);
 }
 
+// Whether the influence region of a triangle (face coordinates t, from
+// the light's centre) misses face lf's window: every vertex beyond one of
+// the window's side planes (through the centre, moved out by two texels)
+// by more than the light's radius R. Every point of the region lies on a
+// ray from a light point l (|l| <= R) through a triangle point b, beyond
+// b: p = l + (b - l) s with s >= 1, so m·p <= (s - 1) R |m| + s m·b < 0
+// where m·b < -R |m|: no view sample of this face (each inside the
+// window, a face's samples in front of it) is there. The margins: 1e-4 of
+// R and 1e-5 of the coordinates' magnitude `scale` (f32 rounding is ~1e-7
+// of it). On a cube of faces most (triangle, face) pairs that reach here
+// are of this kind: the region's computation, for nothing, cost caster
+// setup most of its time.
+bool outside_window(LightFace lf, vec3 t[3], float R, float scale) {
+    vec2 x1y1 = window_end(lf);
+    vec2 slack = 2.0 / lf.window.zw;
+    vec3 planes[4] = vec3[4](vec3(1.0, 0.0, -(lf.window.x - slack.x)), vec3(-1.0, 0.0, x1y1.x + slack.x),
+                             vec3(0.0, 1.0, -(lf.window.y - slack.y)), vec3(0.0, -1.0, x1y1.y + slack.y));
+    bool outside = false;
+    for (int j = 0; j < 4; j++) {
+        vec3 m = planes[j];
+        float need = length(m) * (R * (1.0 + 1e-4) + 1e-5 * scale);
+        outside = outside || (dot(m, t[0]) < -need && dot(m, t[1]) < -need && dot(m, t[2]) < -need);
+    }
+    // Not finite (a degenerate window): no conclusion.
+    return outside && !any(isnan(slack)) && !any(isinf(slack));
+}
+
 // Soft shadows (paper §4.3): a triangle casts unless it is degenerate or,
 // on a closed mesh, every point of the light lies in front of it. Its
 // influence region on a face: the images, seen from the light's centre, of
@@ -30,6 +57,8 @@ void fold_image(LightFace lf, vec3 p, inout vec2 lo, inout vec2 hi) {
 // A vertex as near as the light's extent makes the region the whole face.
 // Each pair carries its triangle (CasterFace, soft pairs), so that binning
 // and occlusion read a pair and its vertices from one 64-byte record.
+// A face whose window the region misses by a side plane is left out
+// before the region is computed (outside_window).
 // No twin of its own: tests/soft_shadows.rs checks that the regions drop
 // no blocking caster (the GPU masks against a brute force without regions).
 void soft_caster(uint i, vec3 v[3], vec3 n, bool closed, uint flags) {
@@ -68,6 +97,9 @@ void soft_caster(uint i, vec3 v[3], vec3 n, bool closed, uint flags) {
         // light sample (depth <= reach): beyond both, it hides nothing.
         if (z_min > max(z_far, reach) * (1.0 + 1e-5) + 1e-30 || z_max < -reach) {
             continue; // beyond every view sample and the light, or wholly behind the light
+        }
+        if (outside_window(lf, t, R, length(o) + max(length(v[0]), max(length(v[1]), length(v[2]))))) {
+            continue;
         }
         uvec4 rect = uvec4(0u, 0u, res - 1u, res - 1u);
         if (z_min > reach) {
