@@ -30,17 +30,17 @@ void fold_image(LightFace lf, vec3 p, inout vec2 lo, inout vec2 hi) {
 // where m·b < -R |m|: no view sample of this face (each inside the
 // window, a face's samples in front of it) is there. The margins: 1e-4 of
 // R and 1e-5 of the coordinates' magnitude `scale` (f32 rounding is ~1e-7
-// of it). On a cube of faces most (triangle, face) pairs that reach here
-// are of this kind: the region's computation, for nothing, cost caster
-// setup most of its time.
+// of it). Without it such faces computed the whole region to find it
+// outside (ToyCar on a ground, sphere light, 512²: caster setup 20.5 ->
+// 16.6-18.1 ms, binning 21.6 -> 17.7 ms, 1.5% fewer pairs).
 bool outside_window(LightFace lf, vec3 t[3], float R, float scale) {
     vec2 x1y1 = window_end(lf);
     vec2 slack = 2.0 / lf.window.zw;
-    vec3 planes[4] = vec3[4](vec3(1.0, 0.0, -(lf.window.x - slack.x)), vec3(-1.0, 0.0, x1y1.x + slack.x),
-                             vec3(0.0, 1.0, -(lf.window.y - slack.y)), vec3(0.0, -1.0, x1y1.y + slack.y));
+    vec3 sides[4] = vec3[4](vec3(1.0, 0.0, -(lf.window.x - slack.x)), vec3(-1.0, 0.0, x1y1.x + slack.x),
+                            vec3(0.0, 1.0, -(lf.window.y - slack.y)), vec3(0.0, -1.0, x1y1.y + slack.y));
     bool outside = false;
     for (int j = 0; j < 4; j++) {
-        vec3 m = planes[j];
+        vec3 m = sides[j];
         float need = length(m) * (R * (1.0 + 1e-4) + 1e-5 * scale);
         outside = outside || (dot(m, t[0]) < -need && dot(m, t[1]) < -need && dot(m, t[2]) < -need);
     }
