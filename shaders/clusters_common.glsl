@@ -94,11 +94,9 @@ ClusterPlane cluster_plane(vec3 a, vec3 b, vec3 c, bool closed) {
     return cp;
 }
 
-// The ClusterPlane of a soft pair's caster, from the pair's CasterFace
-// texels e0..e2 (shadow_common.glsl: soft_pair_triangle).
-ClusterPlane soft_pair_cluster_plane(uvec4 e0, uvec4 e1, uvec4 e2) {
-    uvec4 t0, t1, t2;
-    soft_pair_triangle(e0, e1, e2, t0, t1, t2);
+// The ClusterPlane of a triangle given as GpuTriangle's three texels (a
+// soft pair's: shadow_common.glsl, soft_pair_triangle).
+ClusterPlane triangle_cluster_plane(uvec4 t0, uvec4 t1, uvec4 t2) {
     return cluster_plane(uintBitsToFloat(t0.xyz), uintBitsToFloat(t1.xyz), uintBitsToFloat(t2.xyz),
                          (t0.w & TRIANGLE_CLOSED) != 0u);
 }

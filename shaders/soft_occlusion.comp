@@ -109,8 +109,10 @@ layout(constant_id = 7) const uint WEDGE_RULE = 1u;
 #define FOR_BLOCKS(M) M(0) FOR_BLOCK_1(M) FOR_BLOCK_2(M) FOR_BLOCK_3(M) FOR_BLOCK_4(M) FOR_BLOCK_5(M) FOR_BLOCK_6(M) FOR_BLOCK_7(M)
 
 layout(set = 0, binding = 0) uniform usamplerBuffer pairs_tb;     // CasterFace: 4 texels
-// Binding 1 (the triangles) is in the layout but not read: a pair carries
-// its triangle (soft_pair_triangle).
+// The light samples again (binding 10's buffer), for reads at a per-lane
+// index (exact mode's groups, the unsure bits): a gather from a texel
+// buffer. (No triangles: a pair carries its own, soft_pair_triangle.)
+layout(set = 0, binding = 1) uniform samplerBuffer light_samples_tb;
 layout(set = 0, binding = 2) readonly buffer TileOffsets { uint tile_offsets[]; };
 layout(set = 0, binding = 3) uniform usamplerBuffer tile_pairs_tb;
 layout(set = 0, binding = 4) readonly buffer Counts { uint counts[]; };
@@ -127,9 +129,6 @@ layout(set = 0, binding = 11) uniform usamplerBuffer lut_tb;         // LUT, all
 // each unit's number of entries (the host plans its ranges by them).
 layout(set = 0, binding = 12) writeonly buffer UnsureList { uvec4 unsure_list[]; };
 layout(set = 0, binding = 19) buffer UnsureCounts { uint unsure_counts[]; };
-// The light samples again (binding 10's buffer), for reads at a per-lane
-// index (exact mode's groups): a gather from a texel buffer.
-layout(set = 0, binding = 20) uniform samplerBuffer light_samples_tb;
 // Per tile: its view-sample box (clusters_bounds.comp; lo.w = 0: no box,
 // and then no chunk culling either: the clusters are off or the tile too big).
 layout(set = 0, binding = 13) uniform usamplerBuffer boxes_tb;
@@ -357,6 +356,21 @@ shared uint kept_count;
 // Per subgroup: its samples' box (xyz) and texel rectangle (w: x | y << 16).
 shared vec4 chunk_lo[64], chunk_hi[64];
 
+// A pair's texels: its CasterFace's first (ids) and its triangle's three.
+struct PairTexels {
+    uvec4 ids, t0, t1, t2;
+};
+
+// A pair's texels, all from its own record (soft pairs carry their
+// triangle: soft_pair_triangle).
+PairTexels fetch_pair(uint pi) {
+    PairTexels f;
+    f.ids = texelFetch(pairs_tb, int(4u * pi));
+    soft_pair_triangle(texelFetch(pairs_tb, int(4u * pi + 1u)), texelFetch(pairs_tb, int(4u * pi + 2u)),
+                       texelFetch(pairs_tb, int(4u * pi + 3u)), f.t0, f.t1, f.t2);
+    return f;
+}
+
 // This workgroup's pairs that its samples may need, into kept_pairs; the
 // count of those kept, and the texel rectangle of the subgroup's samples
 // (sg_tmin, sg_tmax: the first loop's per-subgroup test). All invocations
@@ -396,11 +410,9 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, o
         uint pi = texelFetch(tile_pairs_tb, int(k)).x;
         bool keep = true;
         if (box) {
-            uvec4 ids = texelFetch(pairs_tb, int(4u * pi));
-            ClusterPlane plane = soft_pair_cluster_plane(texelFetch(pairs_tb, int(4u * pi + 1u)),
-                                                         texelFetch(pairs_tb, int(4u * pi + 2u)),
-                                                         texelFetch(pairs_tb, int(4u * pi + 3u)));
-            bool meets = pair_meets(ids, tmin, tmax);
+            PairTexels f = fetch_pair(pi);
+            ClusterPlane plane = triangle_cluster_plane(f.t0, f.t1, f.t2);
+            bool meets = pair_meets(f.ids, tmin, tmax);
             uint chunk = chunk_rule(plane, lo, hi);
             uint rule = meets ? chunk : CLUSTER_LIGHT_SIDE;
             keep = rule == CLUSTER_KEEP;
@@ -443,21 +455,6 @@ struct PairPlanes {
     float sigma, se, d0, d1, d2, d3;
     uint alpha_record;
 };
-
-// A pair's texels: its CasterFace's first (ids) and its triangle's three.
-struct PairTexels {
-    uvec4 ids, t0, t1, t2;
-};
-
-// A pair's texels, all from its own record (soft pairs carry their
-// triangle: soft_pair_triangle).
-PairTexels fetch_pair(uint pi) {
-    PairTexels f;
-    f.ids = texelFetch(pairs_tb, int(4u * pi));
-    soft_pair_triangle(texelFetch(pairs_tb, int(4u * pi + 1u)), texelFetch(pairs_tb, int(4u * pi + 2u)),
-                       texelFetch(pairs_tb, int(4u * pi + 3u)), f.t0, f.t1, f.t2);
-    return f;
-}
 
 // Lane `lane`'s PairTexels, for every lane.
 PairTexels shuffle_pair(PairTexels f, uint lane) {

@@ -29,8 +29,6 @@ layout(set = 0, binding = 4) writeonly buffer TilePairs { uint tile_pairs[]; };
 // occupancy bits (occupancy_word), which binning reads once per row word.
 layout(set = 0, binding = 5) uniform usamplerBuffer tile_occupancy_tb;
 layout(set = 0, binding = 6) uniform usamplerBuffer boxes_tb; // per tile: lo (w: valid), hi (clusters_bounds), float bits
-// Binding 7 (the triangles) is in the layout but not read: a soft pair
-// carries its triangle (soft_pair_triangle), and hard pairs need none.
 // Per pair whose rectangle spans at most 32 tiles: the tiles the count
 // kept, bit (ty - t0.y) * columns + (tx - t0.x). The scatter writes those
 // without the occupancy look-ups and the rules (the same tiles, so the
@@ -39,7 +37,9 @@ layout(set = 0, binding = 8) buffer PairTiles { uint pair_tiles[]; };
 // The large pairs (shadow_common.glsl: large_pair) by index: the BY_BLOCKS
 // pipeline's invocations, one each, so that its lanes are all busy (over
 // all pairs, most lanes had none).
-layout(set = 0, binding = 9) uniform usamplerBuffer large_pairs_tb;
+// (Binning reads no triangles: a soft pair carries its own,
+// soft_pair_triangle, and hard pairs need none.)
+layout(set = 0, binding = 7) uniform usamplerBuffer large_pairs_tb;
 
 // What binning found for a pair (the count's drops per rule, and the
 // tiles kept of a pair of few tiles).
@@ -123,7 +123,9 @@ void main() {
     ClusterPlane plane;
     plane.n = vec3(0.0);
     if (CLUSTERS != 0u) {
-        plane = soft_pair_cluster_plane(floatBitsToUint(cf.e0), floatBitsToUint(cf.e1), floatBitsToUint(cf.e2));
+        uvec4 t0, t1, t2;
+        soft_pair_triangle(floatBitsToUint(cf.e0), floatBitsToUint(cf.e1), floatBitsToUint(cf.e2), t0, t1, t2);
+        plane = triangle_cluster_plane(t0, t1, t2);
     }
     PairBins b = PairBins(0u, 0u, 0u, 0u, 0u);
     uvec2 span = t1 - t0 + 1u;

@@ -558,7 +558,6 @@ impl SoftOcclusionPass {
     ) -> Result<()> {
         r.cmd.barrier(Barrier::TransferToCompute);
         let table = table.map_or(self.no_table.slice(), |t| t.into());
-        let triangles = r.inputs.triangles;
         let [records, textures, alphas] = r.inputs.alpha.bindings();
         r.pass("occlusion", |rec, pc| {
             let mut push: LightPush = bytemuck::pod_read_unaligned(pc);
@@ -566,7 +565,7 @@ impl SoftOcclusionPass {
             push.soft[3] = start;
             let bindings = [
                 Binding::uniform_texel(&casters.pairs, RGBA32UI),
-                Binding::uniform_texel(triangles, RGBA32UI),
+                Binding::uniform_texel(&self.light_samples, vk::Format::R32G32B32A32_SFLOAT),
                 storage(&bins.tile_offsets),
                 Binding::uniform_texel(&bins.tile_pairs, vk::Format::R32_UINT),
                 storage(&lists.counts),
@@ -585,7 +584,6 @@ impl SoftOcclusionPass {
                 Binding::uniform_texel(&lists.list_sample_index, vk::Format::R32_UINT),
                 Binding::uniform(&self.pixel_rotation),
                 storage(&self.unsure_counts),
-                Binding::uniform_texel(&self.light_samples, vk::Format::R32G32B32A32_SFLOAT),
             ];
             let push = bytemuck::bytes_of(&push);
             if len == UNITS_INDIRECT {
@@ -666,7 +664,7 @@ fn occlusion_pipeline(
         name,
         spirv,
         bindings: &[
-            tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb, tb, tb, tb, tb, tb, ub, sb, tb,
+            tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb, tb, tb, tb, tb, tb, ub, sb,
         ],
         push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
         specialization: &[

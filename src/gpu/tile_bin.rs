@@ -106,7 +106,7 @@ impl TileBinPass {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let sb = DescriptorKind::StorageBuffer;
         let tb = DescriptorKind::UniformTexelBuffer;
-        let bin_bindings = [sb, sb, sb, tb, sb, tb, tb, tb, sb, tb];
+        let bin_bindings = [sb, sb, sb, tb, sb, tb, tb, tb, sb];
         let make = |name, spirv, bindings: &[DescriptorKind], spec: &[(u32, u32)]| {
             ctx.create_compute_pipeline(&ComputePipelineDesc {
                 name,
@@ -253,7 +253,6 @@ impl TileBinPass {
         soft: Option<&SoftLight>,
     ) -> Result<()> {
         let tiles = r.frame.tiles;
-        let triangles = r.inputs.triangles;
         r.pass("tile_bin_count", |rec, pc| {
             let bindings = [
                 storage(&casters.pairs),
@@ -263,9 +262,8 @@ impl TileBinPass {
                 storage(&self.tile_offsets),
                 Binding::uniform_texel(&lists.tile_max_len, R32UI),
                 Binding::uniform_texel(&clusters.boxes, RGBA32UI),
-                Binding::uniform_texel(triangles, RGBA32UI),
-                storage(&self.pair_tiles),
                 Binding::uniform_texel(&casters.large_pairs, R32UI),
+                storage(&self.pair_tiles),
             ];
             self.dispatch_bins(rec, &self.count, soft.is_some(), &bindings, pc, casters)?;
             let (units, per_tile) = match soft {
@@ -312,7 +310,6 @@ impl TileBinPass {
         (casters, lists, clusters): (&CasterPass, &TexelListPass, &ClusterPass),
         counters: &GrowBuffer,
     ) -> Result<()> {
-        let triangles = r.inputs.triangles;
         match totals {
             Some(totals) => {
                 self.tile_pairs.get(r.ctx, 4 * totals.pairs as u64)?;
@@ -332,9 +329,8 @@ impl TileBinPass {
                 storage(&self.tile_pairs),
                 Binding::uniform_texel(&lists.tile_max_len, R32UI),
                 Binding::uniform_texel(&clusters.boxes, RGBA32UI),
-                Binding::uniform_texel(triangles, RGBA32UI),
-                storage(&self.pair_tiles),
                 Binding::uniform_texel(&casters.large_pairs, R32UI),
+                storage(&self.pair_tiles),
             ];
             self.dispatch_bins(rec, &self.scatter, soft, &bindings, pc, casters)
         })
