@@ -93,8 +93,9 @@ void accumulate(vec3 p, bool point, float z_eps, vec4 window, inout float z_min,
     hi = max(hi, tt);
 }
 
-// Appends one (caster, face) pair: texel rectangle and optional edges (w = 1).
-void append_pair(uint i, uint f, uvec4 rect, vec4 e0, vec4 e1, vec4 e2) {
+// Appends one (caster, face) pair: texel rectangle and optional edges (w =
+// 1); its slot in `pairs` (written only below the capacity, pc.more.x).
+uint append_pair(uint i, uint f, uvec4 rect, vec4 e0, vec4 e1, vec4 e2) {
     uint slot = atomicAdd(counters[COUNTER_PAIRS], 1u);
     if (slot < pc.more.x) {
         CasterFace cf;
@@ -103,10 +104,8 @@ void append_pair(uint i, uint f, uvec4 rect, vec4 e0, vec4 e1, vec4 e2) {
         cf.e1 = e1;
         cf.e2 = e2;
         pairs[slot] = cf;
-        if (is_soft() && large_pair(rect.xy, rect.zw)) {
-            large_pairs[atomicAdd(counters[COUNTER_LARGE_PAIRS], 1u)] = slot;
-        }
     }
+    return slot;
 }
 
 // Appends the (caster i, face f) pair from its clipped polygon's bounds
