@@ -144,14 +144,22 @@ layout(set = 0, binding = 17) uniform usamplerBuffer list_sample_index_tb; // pe
 #include "soft_occlusion_units.glsl"
 
 // The iterations of the in-place loops (unsure bits, and one per block
-// with bits) that one subgroup may run in the opaque round. Its other
-// loops run at most about 10.6 K iterations (at most four per kept pair, one per
-// block it lists and one per block whose in-place loop no lane enters,
-// MAX_KEPT pairs, and the windows', groups', compaction's and searches'),
-// so all of them stay below lavapipe's 65535 per subgroup (one SIMD
-// vector runs a subgroup's invocations together and counts its loops'
-// iterations once).
+// with bits) that one subgroup may run in the opaque round: what its other
+// loops leave of lavapipe's 65535 per subgroup (one SIMD vector runs a
+// subgroup's invocations together and counts its loops' iterations once,
+// all loops together), at most IN_PLACE_BUDGET. The other loops run at
+// most 6 + 2 BLOCKS iterations per kept pair (the first loop's pair and
+// the second's, one per block whose in-place loop no lane enters, one per
+// block the pair lists and that loop's exit, and the windows' and groups'
+// exits, 11 per window of 32 pairs) and fewer than 1024 more (keep_pairs'
+// loops over a chunk of at most 2048 pairs, and the searches):
+// with MAX_KEPT pairs and eight blocks that is 46,080, which leaves the
+// in-place loops 19,455 iterations.
 #define IN_PLACE_BUDGET 49152u
+uint in_place_budget(uint kept) {
+    uint others = (6u + 2u * uint(BLOCKS)) * kept + 1024u;
+    return min(IN_PLACE_BUDGET, 65535u - others);
+}
 
 #define LUT_ALL 0xffffffffu
 #define LUT_NONE 0xfffffffeu
@@ -350,7 +358,8 @@ uvec4 earlier_bits(bool has_sample, uint s, uint words, uint block) {
 // so only a shorter loop saves time. The pairs dropped are ones every lane
 // would skip by occlusion's own early outs: the masks do not change.
 // (main() counts a lane's tests in 16 bits: MAX_KEPT stays below 65536.)
-#define MAX_KEPT 512u
+// As long as look-up mode's chunks (gpu::tile_bin::LOOKUP_PAIR_CHUNK).
+#define MAX_KEPT 2048u
 shared uint kept_pairs[MAX_KEPT];
 shared uint kept_count;
 // Per subgroup: its samples' box (xyz) and texel rectangle (w: x | y << 16).
@@ -593,9 +602,6 @@ void main() {
     uint s = un.slot;
     uvec2 texel = un.texel;
     uint tests = 0u, blocking = 0u, unsure_bits = 0u, listed = 0u, past_sphere = 0u, wedge_rejected = 0u;
-#if SURE
-    uint in_place_left = IN_PLACE_BUDGET;
-#endif
     // Exact mode: light-sample groups tested sample by sample, and groups
     // wholly blocked without a per-sample test.
     uint groups_tested = 0u, groups_every = 0u;
@@ -609,6 +615,9 @@ void main() {
     uint chunk_dropped, chunk_penumbra, chunk_beyond;
     uvec2 sg_tmin, sg_tmax;
     uint kept = keep_pairs(un, x, chunk_dropped, chunk_penumbra, chunk_beyond, sg_tmin, sg_tmax);
+#if SURE
+    uint in_place_left = in_place_budget(kept);
+#endif
     // The reach rule's bound for x: x's distance to the light's centre, or
     // the light's radius.
     float reach_x = max(length(x - pc.origin.xyz), pc.soft_light.x);

@@ -19,6 +19,8 @@ mod common;
 use common::{engine_view_samples, soft_in_mode, words_differ};
 
 const SIZE: u32 = 40;
+/// Pairs per occlusion work unit in look-up mode.
+const UNIT_PAIRS: usize = alias_free_shadows::gpu::tile_bin::LOOKUP_PAIR_CHUNK.1 as usize;
 
 /// `AFS_LUT_EXACT_ALL=1`: every light kind at every sample count on every
 /// scene (the full set that the doc above names; `AFS_LUT_EXACT_SIZE`
@@ -246,7 +248,7 @@ fn unsure_list_ranges_equal_one_range() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
     // The opaque round tests a common scene's unsure bits in place; the
     // tiny light's pairs pass the in-place budget and are listed: 200 light
-    // samples (two blocks) and 1024 view samples list ~0.85 M entries.
+    // samples (two blocks) and 1024 view samples list ~1.7 M entries.
     let TinyLight {
         scene,
         eye,
@@ -271,9 +273,10 @@ fn unsure_list_ranges_equal_one_range() {
         .unwrap();
     assert_eq!(one.visible, exact.visible);
     let soft = one.stats.soft.as_ref().unwrap();
-    // More than one unit's bound (64 lanes × 512 pairs × 2 blocks) in each
-    // of the list's segments: the smallest list a limit allows.
-    let one_unit = 64 * 512 * 2 * alias_free_shadows::gpu::soft_occlusion::UNSURE_SEGMENTS;
+    // More than one unit's bound (64 lanes × a unit's pairs × 2 blocks) in
+    // each of the list's segments: the smallest list a limit allows.
+    let one_unit =
+        64 * UNIT_PAIRS as u64 * 2 * alias_free_shadows::gpu::soft_occlusion::UNSURE_SEGMENTS;
     eprintln!(
         "{} unsure entries in {} range(s) without a limit",
         soft.unsure_entries, soft.unsure_ranges
@@ -335,8 +338,8 @@ fn unsure_list_ranges_equal_one_range() {
 /// nothing, so one invocation meets more unsure bits than lavapipe's 65535
 /// loop iterations allow; past its budget it lists them for the unsure
 /// pass instead. A few casters block a few light samples each; they come
-/// after ~500 others in the scene, so mostly at the end of the first
-/// unit's pairs, where an invocation whose loops were cut lost them (32
+/// near the end of the first unit's pairs (`UNIT_PAIRS`; at 512 pairs a
+/// unit, after ~500 others), where an invocation whose loops were cut lost them (32
 /// and 43 mask words differed in two of three runs without the budget, and
 /// nothing was listed). The masks must be exact mode's.
 #[test]
@@ -365,11 +368,11 @@ fn tiny_light(light_samples: u32, grid: usize) -> TinyLight {
     let eye = DVec3::new(0.0, 1.0, 0.01);
     let (light, ls) = tiny_sphere_light(light_samples);
     let radius = TINY_RADIUS;
-    let mut tris: Vec<_> = (0..1500)
+    let mut tris: Vec<_> = (0..UNIT_PAIRS + 988)
         .map(|k| near_miss_caster(DVec3::ZERO, k))
         .collect();
     for j in 0..12 {
-        let k = 498 + j;
+        let k = UNIT_PAIRS - 14 + j;
         tris.insert(
             k,
             caster_towards(
@@ -524,7 +527,7 @@ fn tiny_light_case(engine: &mut Engine, light_samples: u32) {
 /// bit unsure from that sample, clear misses from the others): in a window
 /// of pairs the lanes have different numbers of them, so the subgroup's
 /// loops run well past the bits of any one lane. Each sample's blockers
-/// stand near the end of each unit of 512 pairs, where the loops' bound
+/// stand near the end of each unit's pairs, where the loops' bound
 /// cuts off. With a per-lane budget of 49,152 bits, 46 mask words
 /// differed from exact mode (stop 54).
 #[test]
@@ -542,7 +545,7 @@ fn lanes_with_unsure_bits_of_their_own_stay_exact() {
         .collect();
     let units = 3;
     // In runs of 64 per view sample.
-    let mut tris: Vec<_> = (0..units * 512)
+    let mut tris: Vec<_> = (0..units * UNIT_PAIRS)
         .map(|k| near_miss_caster(xs[(k / 64) % 8], k))
         .collect();
     // Near the end of each unit: one blocker per view sample, of a light
@@ -550,7 +553,7 @@ fn lanes_with_unsure_bits_of_their_own_stay_exact() {
     for u in 0..units {
         for (lane, &x) in xs.iter().enumerate() {
             let j = u * 8 + lane;
-            tris[u * 512 + 500 + lane] =
+            tris[u * UNIT_PAIRS + UNIT_PAIRS - 12 + lane] =
                 caster_towards(x, ls[(j * 11) % ls.len()], 0.08 * radius, 1.0, j as f64);
         }
     }

@@ -89,6 +89,11 @@ fn unit_entries(blocks: usize) -> u64 {
     64 * LOOKUP_PAIR_CHUNK.1 as u64 * blocks as u64
 }
 
+/// A range of one unit of eight blocks fits in every segment of the
+/// smallest list a device allows (Vulkan's least `maxStorageBufferRange`,
+/// 2^27 bytes, of 32-byte entries).
+const _: () = assert!(64 * LOOKUP_PAIR_CHUNK.1 as u64 * 8 * UNSURE_SEGMENTS <= (1 << 27) / 32);
+
 /// The soft occlusion pipelines and the masks they write.
 pub struct SoftOcclusionPass {
     /// Every kernel by (kernel, alpha round, per-pixel rotation, wedge

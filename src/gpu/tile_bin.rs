@@ -34,25 +34,27 @@ use crate::Result;
 pub const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
 
 /// Pairs per soft occlusion work unit in look-up and approximate modes (any
-/// block count; 512 instead of approximate mode's earlier 256 made its
-/// warm 512² frames 1.4–1.5× faster on ToyCar, 1.1–1.2× on
-/// `torus_knot:20000`, and no different on `builtin:demo`).
-/// Its loops run at most four times per pair (the cheap rules, the planes,
-/// the wedge rule, the look-ups of the pairs that pass) and once per block
-/// it lists, plus once per window of `PAIR_WINDOW` (32) pairs and per 64
-/// pairs compacted, and once per unsure bit tested in place (and per block
-/// of them), which `IN_PLACE_BUDGET` (49152) holds per subgroup: below
+/// block count). Fewer, longer units pay off on lavapipe, which runs a
+/// kernel's code outside loops for every SIMD vector of every unit even
+/// when no lane is active: 2048 instead of 512 made warm 512² frames
+/// (128 samples, sphere light) 0.86× as long on ToyCar on a ground, 0.93×
+/// on `torus_knot:20000`, 0.92× on `builtin:hairball`, and 0.83× on ToyCar
+/// at 1024 samples (1024 pairs helped less, and hairball not at all; 4096
+/// no more than 2048). Earlier, 512 instead of 256 made approximate mode
+/// 1.4–1.5× faster on ToyCar.
+/// Its loops run at most 6 + 2 · blocks times per kept pair, and once per
+/// unsure bit tested in place (and per block of them), which the kernel's
+/// `in_place_budget` holds per subgroup to what the others leave of
 /// lavapipe's 65535 loop iterations per subgroup (one SIMD vector, whose
-/// loops run as long as their busiest lane; the other bounds here are per
-/// iteration, so they hold for the busiest lane too). The
-/// bound is the shared memory that holds a unit's pairs (`MAX_KEPT`). The
+/// loops run as long as their busiest lane). The bound is the shared
+/// memory that holds a unit's pairs (`MAX_KEPT`). The
 /// unsure list holds at most one entry per lane, pair and block of a unit
 /// (`SoftOcclusionPass::capacity`).
-pub const LOOKUP_PAIR_CHUNK: (u32, u32) = (2, 512);
+pub const LOOKUP_PAIR_CHUNK: (u32, u32) = (2, 2048);
 
-/// Soft occlusion compacts a unit's pairs into `MAX_KEPT` (512) slots of
+/// Soft occlusion compacts a unit's pairs into `MAX_KEPT` (2048) slots of
 /// shared memory (soft_occlusion.comp): no chunk may be longer.
-const _: () = assert!(SOFT_PAIR_CHUNK.1 <= 512 && LOOKUP_PAIR_CHUNK.1 <= 512);
+const _: () = assert!(SOFT_PAIR_CHUNK.1 <= 2048 && LOOKUP_PAIR_CHUNK.1 <= 2048);
 
 /// The binning passes' pipelines and the per-tile lists they build.
 pub struct TileBinPass {
