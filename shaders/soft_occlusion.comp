@@ -362,6 +362,10 @@ uvec4 earlier_bits(bool has_sample, uint s, uint words, uint block) {
 #define MAX_KEPT 2048u
 shared uint kept_pairs[MAX_KEPT];
 shared uint kept_count;
+// The chunk's pairs whose texel rectangle meets its samples' (keep_pairs'
+// first step).
+shared uint meeting_pairs[MAX_KEPT];
+shared uint meeting_count;
 // Per subgroup: its samples' box (xyz) and texel rectangle (w: x | y << 16).
 shared vec4 chunk_lo[64], chunk_hi[64];
 
@@ -400,6 +404,7 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, o
     }
     if (lid == 0u) {
         kept_count = 0u;
+        meeting_count = 0u;
     }
     barrier();
     vec3 lo = inf, hi = -inf;
@@ -415,15 +420,33 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, o
     bool any_sample = lo.x <= hi.x;
     bool box = any_sample && uintBitsToFloat(texelFetch(boxes_tb, int(2u * un.tile)).w) != 0.0;
     uint local_dropped = 0u, local_penumbra = 0u, local_beyond = 0u;
+    // First the pairs whose texel rectangle meets the chunk's (one fetch
+    // each; most of the chunk's drops), then the chunk rules (the pair's
+    // triangle and plane) for those only: on lavapipe a loop's lanes pay
+    // for every pair's rules, needed or not.
     for (uint k = un.pair_begin + lid; k < un.pair_end; k += 64u) {
         uint pi = texelFetch(tile_pairs_tb, int(k)).x;
+        bool meets = !box || pair_meets(texelFetch(pairs_tb, int(4u * pi)), tmin, tmax);
+        uvec4 ballot = subgroupBallot(meets);
+        uint first = 0u;
+        if (subgroupElect()) {
+            first = atomicAdd(meeting_count, subgroupBallotBitCount(ballot));
+        }
+        first = subgroupBroadcastFirst(first);
+        if (meets) {
+            meeting_pairs[first + subgroupBallotExclusiveBitCount(ballot)] = pi;
+        } else {
+            local_dropped++;
+        }
+    }
+    barrier();
+    uint meeting = meeting_count;
+    for (uint k = lid; k < meeting; k += 64u) {
+        uint pi = meeting_pairs[k];
         bool keep = true;
         if (box) {
             PairTexels f = fetch_pair(pi);
-            ClusterPlane plane = triangle_cluster_plane(f.t0, f.t1, f.t2);
-            bool meets = pair_meets(f.ids, tmin, tmax);
-            uint chunk = chunk_rule(plane, lo, hi);
-            uint rule = meets ? chunk : CLUSTER_LIGHT_SIDE;
+            uint rule = chunk_rule(triangle_cluster_plane(f.t0, f.t1, f.t2), lo, hi);
             keep = rule == CLUSTER_KEEP;
             local_penumbra += rule == CLUSTER_OUTSIDE_PENUMBRA ? 1u : 0u;
             local_beyond += rule == CLUSTER_BEYOND_REACH ? 1u : 0u;
