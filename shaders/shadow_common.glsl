@@ -332,13 +332,25 @@ float key_float(uint k) {
     return uintBitsToFloat((k & 0x80000000u) != 0u ? (k & 0x7fffffffu) : ~k);
 }
 
-// A texel's list index: tile-major (64 texels per tile, row-major inside),
+// A texel's place in its tile's lists: Z order (x's bits at the even
+// places, y's at the odd), so that consecutive texels form compact
+// blocks (occlusion's chunks of samples cover a small texel rectangle).
+// (TILE is 8: three bits of each; gpu::light_frame checks it.)
+uint in_tile_index(uvec2 t) {
+    return (t.x & 1u) | ((t.y & 1u) << 1) | ((t.x & 2u) << 1) | ((t.y & 2u) << 2) | ((t.x & 4u) << 2) | ((t.y & 4u) << 3);
+}
+// Its inverse: the texel (in its tile) at place i.
+uvec2 in_tile_texel(uint i) {
+    return uvec2((i & 1u) | ((i >> 1) & 2u) | ((i >> 2) & 4u), ((i >> 1) & 1u) | ((i >> 2) & 2u) | ((i >> 3) & 4u));
+}
+
+// A texel's list index: tile-major (64 texels per tile, Z order inside, in_tile_index),
 // so that one tile's samples are contiguous in the lists and the soft
 // occlusion can give each lane one sample. pc.more: y tiles per row, z
 // tiles per face.
 uint texel_index(uint face, uvec2 t) {
     uvec2 tile = t / TILE;
-    return ((face * pc.more.z + tile.y * pc.more.y + tile.x) * TILE + t.y % TILE) * TILE + t.x % TILE;
+    return (face * pc.more.z + tile.y * pc.more.y + tile.x) * TILE * TILE + in_tile_index(t % TILE);
 }
 
 // Which tiles hold view samples, after the per-tile longest list lengths

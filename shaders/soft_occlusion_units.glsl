@@ -81,7 +81,7 @@ OcclusionUnit occlusion_unit() {
                 hi = mid;
             }
         }
-        u.texel = tile_xy * TILE + uvec2(lo % TILE, lo / TILE);
+        u.texel = tile_xy * TILE + in_tile_texel(lo);
         u.first_of_texel = offsets[first_texel + lo] == u.slot;
     }
     return u;

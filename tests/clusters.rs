@@ -73,12 +73,13 @@ fn clusters_change_no_result() {
     let mut hull = 0u64;
     // Tile binning's (pair, tile) drops by the reach and hull rules.
     let (mut bin_beyond, mut bin_hull) = (0u64, 0u64);
-    // (plane_sphere at 64² has chunks whose reach drops a caster that
-    // their tile's does not.)
+    // (plane_sphere at 128² has chunks whose reach drops a caster that
+    // their tile's does not; at 64² it had them while a tile's texels were
+    // listed row by row, not since they are in Z order.)
     for (spec, size) in [
         ("builtin:demo", SIZE),
         ("builtin:plane_sphere", SIZE),
-        ("builtin:plane_sphere", 2 * SIZE),
+        ("builtin:plane_sphere", 4 * SIZE),
         ("builtin:stairs", SIZE),
         ("builtin:hairball", SIZE),
         ("builtin:fence", SIZE),

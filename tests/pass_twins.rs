@@ -60,10 +60,14 @@ fn read<T: bytemuck::Pod>(ctx: &GpuContext, b: &GrowBuffer, count: usize) -> Vec
 }
 
 /// The tile-major list index of texel (tx, ty) of `face` (`texel_index` in
-/// shadow_common.glsl).
+/// shadow_common.glsl): the texels of an 8 x 8 tile in Z order.
 fn tile_major(face: u32, tx: u32, ty: u32, tiles_per_row: u32) -> usize {
     let tile = face * tiles_per_row * tiles_per_row + (ty / TILE) * tiles_per_row + tx / TILE;
-    ((tile * TILE + ty % TILE) * TILE + tx % TILE) as usize
+    let (x, y) = (tx % TILE, ty % TILE);
+    let z_order = (0..3).fold(0, |z, bit| {
+        z | ((x >> bit) & 1) << (2 * bit) | ((y >> bit) & 1) << (2 * bit + 1)
+    });
+    (tile * TILE * TILE + z_order) as usize
 }
 
 /// The light view, texel lists, tile bins and resolve of the last run

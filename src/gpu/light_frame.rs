@@ -304,3 +304,20 @@ impl<'a> Recording<'a> {
         self.ctx.submit_and_wait(done)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::TILE;
+
+    /// The shaders' tile side is this one, and eight: a texel's place in
+    /// its tile's lists interleaves three bits of x and y (`in_tile_index`).
+    #[test]
+    fn tile_side_matches_the_shaders() {
+        let shadow_common = include_str!("../../shaders/shadow_common.glsl");
+        assert_eq!(
+            crate::gpu::shared::tests::glsl_define(shadow_common, "TILE"),
+            Some(TILE as u64)
+        );
+        assert_eq!(TILE, 8);
+    }
+}
