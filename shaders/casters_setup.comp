@@ -6,6 +6,7 @@
 // crossing it is left to casters_clip (see casters_common.glsl for why).
 // Twin: cpu::casters::setup_casters.
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
 #include "casters_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
 // 1: the soft-shadow pipeline (soft_caster), 0: the hard one. Chosen per
@@ -84,23 +85,36 @@ void soft_caster(uint i, vec3 v[3], vec3 n, bool closed, uint flags) {
     uint res = pc.sizes.z;
     float max_t = float(res) - 1.0;
     bool any_face = false;
+    // The faces this caster may cast on, by the cheap tests, then the
+    // region for those only, a face at a time over the subgroup's union:
+    // lavapipe runs a loop's body for every lane as long as any lane has a
+    // face left, so six turns cost six regions where most casters need
+    // one or two.
+    float scale = length(o) + max(length(v[0]), max(length(v[1]), length(v[2])));
+    uint todo = 0u;
     for (uint f = 0u; f < pc.sizes.w; f++) {
         LightFace lf = faces[f];
-        if (lf.right.w == 0.0) {
-            continue;
-        }
         vec3 t[3] = vec3[3](to_face(lf, v[0] - o), to_face(lf, v[1] - o), to_face(lf, v[2] - o));
-        float z_far = lf.far.x;
         float z_min = min(t[0].z, min(t[1].z, t[2].z));
         float z_max = max(t[0].z, max(t[1].z, t[2].z));
         // A blocker lies on a segment from a sample (depth <= z_far) to a
-        // light sample (depth <= reach): beyond both, it hides nothing.
-        if (z_min > max(z_far, reach) * (1.0 + 1e-5) + 1e-30 || z_max < -reach) {
-            continue; // beyond every view sample and the light, or wholly behind the light
-        }
-        if (outside_window(lf, t, R, length(o) + max(length(v[0]), max(length(v[1]), length(v[2]))))) {
+        // light sample (depth <= reach): beyond both, it hides nothing;
+        // wholly behind the light, nothing either.
+        bool misses = lf.right.w == 0.0 || z_min > max(lf.far.x, reach) * (1.0 + 1e-5) + 1e-30 || z_max < -reach
+            || outside_window(lf, t, R, scale);
+        todo |= misses ? 0u : 1u << f;
+    }
+    uint faces_left = subgroupOr(todo);
+    while (faces_left != 0u) {
+        uint f = uint(findLSB(faces_left));
+        faces_left &= faces_left - 1u;
+        if ((todo & (1u << f)) == 0u) {
             continue;
         }
+        LightFace lf = faces[f];
+        vec3 t[3] = vec3[3](to_face(lf, v[0] - o), to_face(lf, v[1] - o), to_face(lf, v[2] - o));
+        float z_far = lf.far.x;
+        float z_min = min(t[0].z, min(t[1].z, t[2].z));
         uvec4 rect = uvec4(0u, 0u, res - 1u, res - 1u);
         if (z_min > reach) {
             vec2 lo = vec2(1.0 / 0.0), hi = vec2(-1.0 / 0.0);
@@ -232,11 +246,11 @@ void main() {
 
     bool any_face = false;
     uint clip_mask = 0u;
+    // As soft_caster: which faces need a pair, then the pairs over the
+    // subgroup's union of those faces.
+    uint todo = 0u;
     for (uint f = 0u; f < pc.sizes.w; f++) {
         LightFace lf = faces[f];
-        if (lf.right.w == 0.0) {
-            continue;
-        }
         vec3 t0 = to_face(lf, v[0] - o), t1 = to_face(lf, v[1] - o), t2 = to_face(lf, v[2] - o);
         vec2 x1y1 = window_end(lf);
         // The window pyramid's planes, evaluated exactly as casters_clip's clip() does.
@@ -248,7 +262,7 @@ void main() {
         // Rejection allows casters_clip's slack, so that what it would keep
         // is never rejected here.
         bool all_in = true;
-        bool rejected = false;
+        bool rejected = lf.right.w == 0.0;
         float t_max = face_extent(t0, t1, t2);
         for (int j = 0; j < 5; j++) {
             vec4 pl = wplanes[j];
@@ -260,13 +274,18 @@ void main() {
             rejected = rejected || (used && d0 < -slack && d1 < -slack && d2 < -slack);
             all_in = all_in && (!used || (d0 >= 0.0 && d1 >= 0.0 && d2 >= 0.0));
         }
-        if (rejected) {
+        clip_mask |= !rejected && !all_in ? 1u << f : 0u;
+        todo |= !rejected && all_in ? 1u << f : 0u;
+    }
+    uint faces_left = subgroupOr(todo);
+    while (faces_left != 0u) {
+        uint f = uint(findLSB(faces_left));
+        faces_left &= faces_left - 1u;
+        if ((todo & (1u << f)) == 0u) {
             continue;
         }
-        if (!all_in) {
-            clip_mask |= 1u << f;
-            continue;
-        }
+        LightFace lf = faces[f];
+        vec3 t0 = to_face(lf, v[0] - o), t1 = to_face(lf, v[1] - o), t2 = to_face(lf, v[2] - o);
         float z_eps = lf.far.x * 1e-6;
         float z_min = 1.0 / 0.0;
         vec2 lo = vec2(1.0 / 0.0), hi = vec2(-1.0 / 0.0);
