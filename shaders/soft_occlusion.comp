@@ -826,10 +826,10 @@ void main() {
                 // a loop over each lane's own blocks ran 16.3 M; the frame
                 // time did not measurably change, stop 54). The alpha round
                 // lists them (opacity look-ups per bit). So does a pair past
-                // IN_PLACE_BUDGET iterations of
+                // in_place_budget's iterations of
                 // those loops in this subgroup: lavapipe silently ends the
                 // loops of a subgroup (one SIMD vector) after 65535
-                // iterations in all, and a unit's 512 pairs with 128 unsure
+                // iterations in all, and a unit's pairs with 128 unsure
                 // bits each would pass that (a light small for its distance
                 // leaves every bit unsure; stop 53). The budget is counted
                 // per subgroup, as the loops count: a pair's cost is the sum

@@ -39,8 +39,8 @@ pub const SOFT_PAIR_CHUNK: (u32, u32) = (2, 256);
 /// when no lane is active: 2048 instead of 512 made warm 512² frames
 /// (128 samples, sphere light) 0.86× as long on ToyCar on a ground, 0.93×
 /// on `torus_knot:20000`, 0.92× on `builtin:hairball`, and 0.83× on ToyCar
-/// at 1024 samples (1024 pairs helped less, and hairball not at all; 4096
-/// no more than 2048). Earlier, 512 instead of 256 made approximate mode
+/// at 1024 samples (1024 pairs helped less and made hairball slower; 4096
+/// did no better than 2048). Earlier, 512 instead of 256 made approximate mode
 /// 1.4–1.5× faster on ToyCar.
 /// Its loops run at most 6 + 2 · blocks times per kept pair, and once per
 /// unsure bit tested in place (and per block of them), which the kernel's
