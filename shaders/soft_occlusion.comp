@@ -358,7 +358,8 @@ uvec4 earlier_bits(bool has_sample, uint s, uint words, uint block) {
 // so only a shorter loop saves time. The pairs dropped are ones every lane
 // would skip by occlusion's own early outs: the masks do not change.
 // (main() counts a lane's tests in 16 bits: MAX_KEPT stays below 65536.)
-// As long as look-up mode's chunks (gpu::tile_bin::LOOKUP_PAIR_CHUNK).
+// As long as look-up mode's chunks (gpu::tile_bin::LOOKUP_PAIR_CHUNK);
+// gpu::soft_occlusion::SHARED_BYTES counts this kernel's shared arrays.
 #define MAX_KEPT 2048u
 shared uint kept_pairs[MAX_KEPT];
 shared uint kept_count;

@@ -8,7 +8,7 @@
 //! `casters_clip.comp`, one invocation each through an indirect dispatch
 //! whose size `casters_clip_args.comp` writes. CPU twin: [`crate::cpu::casters`].
 
-use crate::gpu::dispatch::{groups, storage, RGBA32UI};
+use crate::gpu::dispatch::{groups, require_occlusion_subgroup_ops, storage, RGBA32UI};
 use crate::gpu::light_frame::LightFrame;
 use crate::gpu::light_frame::Recording;
 use crate::gpu::shaders;
@@ -52,6 +52,9 @@ pub struct CasterPass {
 impl CasterPass {
     /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
+        // casters_setup.comp takes each subgroup's faces as a union
+        // (subgroupOr).
+        require_occlusion_subgroup_ops(ctx, "caster setup")?;
         let sb = DescriptorKind::StorageBuffer;
         let casters = [
             DescriptorKind::UniformTexelBuffer,

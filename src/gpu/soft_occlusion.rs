@@ -29,7 +29,7 @@ use crate::vulkan::{
     vk, Barrier, Binding, Buffer, CommandRecorder, ComputePipeline, ComputePipelineDesc,
     DescriptorKind, GpuContext, GrowBuffer,
 };
-use crate::Result;
+use crate::{Error, Result};
 use std::collections::HashMap;
 
 /// What soft occlusion reads of the passes before it: the texel lists, the
@@ -88,6 +88,15 @@ const UNSURE_COUNT_STRIDE: usize = 16;
 fn unit_entries(blocks: usize) -> u64 {
     64 * LOOKUP_PAIR_CHUNK.1 as u64 * blocks as u64
 }
+
+/// Shared memory of the soft occlusion kernels (soft_occlusion.comp):
+/// `keep_pairs`' two arrays of `MAX_KEPT` (= `LOOKUP_PAIR_CHUNK`) pair
+/// indices and their two counts, and 64 subgroup boxes of two `vec4`s.
+/// 18,440 bytes, past Vulkan's least `maxComputeSharedMemorySize` (16 KiB;
+/// lavapipe has 32, desktop GPUs 32 to 64): one array compacted in place
+/// instead took a barrier per 64 pairs and made ToyCar's occlusion 5%
+/// slower on lavapipe.
+pub const SHARED_BYTES: u32 = 2 * 4 * LOOKUP_PAIR_CHUNK.1 + 2 * 4 + 2 * 64 * 16;
 
 /// A range of one unit of eight blocks fits in every segment of the
 /// smallest list a device allows (Vulkan's least `maxStorageBufferRange`,
@@ -202,6 +211,13 @@ impl SoftOcclusionPass {
     /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         require_occlusion_subgroup_ops(ctx, "soft occlusion")?;
+        let info = ctx.info();
+        if info.limits.max_compute_shared_memory_size < SHARED_BYTES {
+            return Err(Error::Vulkan(format!(
+                "soft occlusion needs {SHARED_BYTES} bytes of shared memory per workgroup, \"{}\" has {}",
+                info.name, info.limits.max_compute_shared_memory_size
+            )));
+        }
         let plain = (1..=8)
             .flat_map(|b| [Kernel::Sure(b), Kernel::Approx(b)])
             .chain([Kernel::Exact, Kernel::Unsure]);
@@ -749,5 +765,31 @@ mod tests {
         // A first unit over the budget still makes a range of one.
         assert_eq!(fitting_prefix(&[100, 0, 0], 10), 1);
         assert_eq!(fitting_prefix(&[], 10), 1);
+    }
+
+    /// The kernel's shared arrays are as SHARED_BYTES counts them: a unit's
+    /// chunk of pairs fits `MAX_KEPT`, and the subgroup boxes are 64.
+    #[test]
+    fn shared_arrays_match_the_kernel() {
+        let glsl = include_str!("../../shaders/soft_occlusion.comp");
+        assert_eq!(
+            crate::gpu::shared::tests::glsl_define(glsl, "MAX_KEPT"),
+            Some(LOOKUP_PAIR_CHUNK.1 as u64)
+        );
+        for decl in [
+            "shared uint kept_pairs[MAX_KEPT];",
+            "shared uint meeting_pairs[MAX_KEPT];",
+            "shared uint kept_count;",
+            "shared uint meeting_count;",
+            "shared vec4 chunk_lo[64], chunk_hi[64];",
+        ] {
+            assert!(glsl.contains(decl), "{decl}");
+        }
+        assert_eq!(
+            glsl.matches("\nshared ").count(),
+            5,
+            "every shared array counted"
+        );
+        assert_eq!(SHARED_BYTES, 18_440);
     }
 }
