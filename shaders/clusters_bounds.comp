@@ -6,7 +6,10 @@
 // BLOCKS = 1: per block of CLUSTER_BLOCK² tiles, the union of the boxes of
 // its tiles that hold samples (valid when every one of them has a valid
 // box), written after the tiles' boxes.
-// Twin: cpu::clusters::tile_boxes and block_boxes.
+// BLOCKS = 2: per group of CLUSTER_GROUP_SAMPLES consecutive listed
+// samples (clusters_common.glsl), their box (valid when every sample is
+// finite), written after the blocks' boxes.
+// Twin: cpu::clusters::tile_boxes, block_boxes and group_boxes.
 #extension GL_GOOGLE_include_directive : require
 #include "clusters_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
@@ -43,8 +46,32 @@ void block_box(uint b) {
     boxes[at + 1u] = vec4(hi, 0.0);
 }
 
+void group_box(uint g) {
+    uint listed = offsets[pc.more.z * pc.sizes.w * TILE * TILE];
+    uint begin = g * CLUSTER_GROUP_SAMPLES;
+    if (begin >= listed) {
+        return;
+    }
+    uint end = min(begin + CLUSTER_GROUP_SAMPLES, listed);
+    vec3 lo = vec3(1.0 / 0.0), hi = vec3(-1.0 / 0.0);
+    bool valid = true;
+    for (uint s = begin; s < end; s++) {
+        vec3 x = uintBitsToFloat(texelFetch(list_samples_tb, int(s)).xyz);
+        valid = valid && !any(isnan(x)) && !any(isinf(x));
+        lo = min(lo, x);
+        hi = max(hi, x);
+    }
+    uint at = cluster_group_box(g);
+    boxes[at] = vec4(lo, valid ? 1.0 : 0.0);
+    boxes[at + 1u] = vec4(hi, 0.0);
+}
+
 void main() {
     uint t = linear_invocation();
+    if (BLOCKS == 2u) {
+        group_box(t);
+        return;
+    }
     if (BLOCKS != 0u) {
         block_box(t);
         return;

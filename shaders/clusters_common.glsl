@@ -341,6 +341,24 @@ uint cluster_block_box(uint face, uvec2 block) {
     return 2u * (pc.more.z * pc.sizes.w + (face * per_row + block.y) * per_row + block.x);
 }
 
+// Groups of CLUSTER_GROUP_SAMPLES consecutive listed samples (of all
+// tiles' lists, tile-major: a group lies in one tile or spans the end of
+// one and the start of the next), each with a box after the blocks' boxes
+// (clusters_bounds.comp, BLOCKS = 2): pair_groups.comp tests a tile's pairs
+// against the boxes of the groups its samples fall in, so that a work unit
+// (a chunk of 64 of the tile's samples, soft_occlusion.comp) skips the
+// pairs that the rules drop for every group it overlaps, before its own
+// chunk's rules. Eight chunks a group: a tile of thousands of samples (a
+// car over a ground, seen from the light) had each of its pairs judged by
+// the chunk rules once per chunk.
+#define CLUSTER_GROUP_SAMPLES 512u
+// A pair's group bits (pair_groups.comp) cover a tile's first 32 groups;
+// past them, every group keeps the pair.
+#define CLUSTER_GROUP_BITS 32u
+uint cluster_group_box(uint g) {
+    return cluster_block_box(pc.sizes.w, uvec2(0u)) + 2u * g;
+}
+
 // Soft occlusion's rule for a chunk of samples (kept_pairs): cull_rule,
 // the box outside the caster's penumbra volume (outside_penumbra), then
 // far_rule. Twin: cpu::clusters::chunk_rule.

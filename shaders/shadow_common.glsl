@@ -114,7 +114,10 @@ layout(constant_id = 3) const uint OCC_SAMPLE_CHUNK = 32u;
 #define COUNTER_BIN_OUTSIDE_HULL 27
 // Caster setup, soft shadows: the pairs listed as large (large_pair).
 #define COUNTER_LARGE_PAIRS 28
-#define COUNTER_COUNT 29
+// Soft occlusion: of COUNTER_CLUSTER_CHUNK's visits, those that the groups'
+// boxes dropped (pair_groups.comp) before the chunk's own tests.
+#define COUNTER_CLUSTER_GROUPS 29
+#define COUNTER_COUNT 30
 
 // Soft pairs whose rectangle spans more tiles than this are large: tile
 // binning tests them against blocks of tiles first (tile_bin.comp,

@@ -136,6 +136,9 @@ layout(set = 0, binding = 14) uniform usamplerBuffer alpha_records;
 layout(set = 0, binding = 15) uniform usamplerBuffer alpha_textures;
 layout(set = 0, binding = 16) uniform usamplerBuffer alpha_texels;
 layout(set = 0, binding = 17) uniform usamplerBuffer list_sample_index_tb; // per slot: its view sample
+// Per binned pair (slot of tile_pairs): the groups of the tile's samples
+// it may shadow (pair_groups.comp).
+layout(set = 0, binding = 20) uniform usamplerBuffer pair_groups_tb;
 #if SURE
 // Look-up mode runs the units in ranges, each flushing its unsure list
 // (soft_occlusion.rs): soft.w is the range's first unit.
@@ -389,8 +392,8 @@ PairTexels fetch_pair(uint pi) {
 // count of those kept, and the texel rectangle of the subgroup's samples
 // (sg_tmin, sg_tmax: the first loop's per-subgroup test). All invocations
 // call it (barriers).
-uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, out uint beyond_chunk,
-                out uvec2 sg_tmin, out uvec2 sg_tmax) {
+uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint by_groups, out uint penumbra,
+                out uint beyond_chunk, out uvec2 sg_tmin, out uvec2 sg_tmax) {
     uint lid = gl_LocalInvocationID.x;
     // The chunk's box and texel rectangle: per subgroup, then over the
     // subgroups through shared memory; lanes without a sample add nothing.
@@ -420,14 +423,26 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, o
     }
     bool any_sample = lo.x <= hi.x;
     bool box = any_sample && uintBitsToFloat(texelFetch(boxes_tb, int(2u * un.tile)).w) != 0.0;
-    uint local_dropped = 0u, local_penumbra = 0u, local_beyond = 0u;
-    // First the pairs whose texel rectangle meets the chunk's (one fetch
-    // each; most of the chunk's drops), then the chunk rules (the pair's
-    // triangle and plane) for those only: on lavapipe a loop's lanes pay
-    // for every pair's rules, needed or not.
+    uint local_dropped = 0u, local_groups = 0u, local_penumbra = 0u, local_beyond = 0u;
+    // The groups of the tile's samples (pair_groups.comp) that this chunk
+    // overlaps: bits ga and gb of each pair's group bits (past the bits:
+    // every pair kept).
+    uint tile_first = offsets[un.tile * TILE * TILE], tile_end = offsets[(un.tile + 1u) * TILE * TILE];
+    uint chunk_first = un.slot - lid;
+    uint chunk_last = min(chunk_first + 63u, max(tile_end, 1u) - 1u);
+    uint ga = chunk_first / CLUSTER_GROUP_SAMPLES - tile_first / CLUSTER_GROUP_SAMPLES;
+    uint gb = chunk_last / CLUSTER_GROUP_SAMPLES - tile_first / CLUSTER_GROUP_SAMPLES;
+    uint group_bits = gb < CLUSTER_GROUP_BITS ? (1u << ga) | (1u << gb) : 0u;
+    // First the pairs that some group of the chunk keeps and whose texel
+    // rectangle meets the chunk's (one fetch each; most of the chunk's
+    // drops), then the chunk rules (the pair's triangle and plane) for
+    // those only: on lavapipe a loop's lanes pay for every pair's rules,
+    // needed or not.
     for (uint k = un.pair_begin + lid; k < un.pair_end; k += 64u) {
         uint pi = texelFetch(tile_pairs_tb, int(k)).x;
-        bool meets = !box || pair_meets(texelFetch(pairs_tb, int(4u * pi)), tmin, tmax);
+        bool grouped = group_bits == 0u || (texelFetch(pair_groups_tb, int(k)).x & group_bits) != 0u;
+        local_groups += box && !grouped ? 1u : 0u;
+        bool meets = !box || (grouped && pair_meets(texelFetch(pairs_tb, int(4u * pi)), tmin, tmax));
         uvec4 ballot = subgroupBallot(meets);
         uint first = 0u;
         if (subgroupElect()) {
@@ -468,6 +483,7 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint penumbra, o
     }
     barrier();
     dropped = local_dropped;
+    by_groups = local_groups;
     penumbra = local_penumbra;
     beyond_chunk = local_beyond;
     return kept_count;
@@ -636,9 +652,9 @@ void main() {
     float inv_r = 1.0 / pc.soft_light.x;
     uvec4 qb = un.has_sample ? texelFetch(list_samples_tb, int(s)) : uvec4(0u);
     vec3 x = uintBitsToFloat(qb.xyz);
-    uint chunk_dropped, chunk_penumbra, chunk_beyond;
+    uint chunk_dropped, chunk_groups, chunk_penumbra, chunk_beyond;
     uvec2 sg_tmin, sg_tmax;
-    uint kept = keep_pairs(un, x, chunk_dropped, chunk_penumbra, chunk_beyond, sg_tmin, sg_tmax);
+    uint kept = keep_pairs(un, x, chunk_dropped, chunk_groups, chunk_penumbra, chunk_beyond, sg_tmin, sg_tmax);
 #if SURE
     uint in_place_left = in_place_budget(kept);
 #endif
@@ -997,11 +1013,13 @@ void main() {
         atomicAdd(counters[COUNTER_SAMPLE_VISITS], sum_visits);
     }
     uint sum_beyond_chunk = subgroupAdd(chunk_beyond);
+    uint sum_groups = subgroupAdd(chunk_groups);
     uint sum_beyond = subgroupAdd(beyond_tests);
     if (subgroupElect() && sum_dropped != 0u) {
         atomicAdd(counters[COUNTER_CLUSTER_CHUNK], sum_dropped);
         atomicAdd(counters[COUNTER_CLUSTER_OUTSIDE_PENUMBRA], sum_penumbra);
         atomicAdd(counters[COUNTER_CLUSTER_BEYOND_REACH], sum_beyond_chunk);
+        atomicAdd(counters[COUNTER_CLUSTER_GROUPS], sum_groups);
     }
     if (subgroupElect() && sum_beyond != 0u) {
         atomicAdd(counters[COUNTER_BEYOND_REACH], sum_beyond);

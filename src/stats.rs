@@ -83,6 +83,12 @@ pub struct ShadowStats {
     /// (`COUNTER_CLUSTER_BEYOND_REACH`).
     #[serde(default)]
     pub chunk_pairs_beyond_reach: u32,
+    /// Soft occlusion: of [`Self::chunk_pairs_dropped`], the visits that
+    /// the boxes of the groups of 512 samples the chunk lies in ruled out
+    /// (by the chunk's rules, once per group instead of once per chunk)
+    /// before the chunk's own tests (`COUNTER_CLUSTER_GROUPS`).
+    #[serde(default)]
+    pub chunk_pairs_group_dropped: u32,
     /// Bytes of GPU buffers the passes used.
     pub gpu_buffer_bytes: u64,
     /// Buffers and images the passes created (0 once warm).
@@ -245,6 +251,7 @@ impl ShadowStats {
             chunk_pairs_dropped: c[counter::CLUSTER_CHUNK],
             chunk_pairs_outside_penumbra: c[counter::CLUSTER_OUTSIDE_PENUMBRA],
             chunk_pairs_beyond_reach: c[counter::CLUSTER_BEYOND_REACH],
+            chunk_pairs_group_dropped: c[counter::CLUSTER_GROUPS],
             gpu_buffer_bytes: out.buffer_bytes,
             allocations: out.allocations,
             ms,

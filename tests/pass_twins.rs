@@ -3,12 +3,17 @@
 //! passes before it): the light view's windows (`cpu::light_view`), the
 //! texel lists' counts and texels (`cpu::texel_lists`), the tile bins
 //! with their view-sample boxes (`cpu::tile_bin`, `cpu::clusters`), the
-//! hard resolve and the soft resolve
+//! binned pairs' sample groups (`cpu::pair_groups`), the hard resolve and
+//! the soft resolve
 //! (`cpu::resolve`). The passes keep their buffers across frames, so the
 //! test reads them where the run left them.
 
-use alias_free_shadows::cpu::clusters::{block_boxes, tile_boxes, ClusterLight, TileBox};
+use alias_free_shadows::cpu::casters::CasterFace;
+use alias_free_shadows::cpu::clusters::{
+    block_boxes, group_boxes, tile_boxes, ClusterLight, TileBox,
+};
 use alias_free_shadows::cpu::light_view::{fit_windows, LightView};
+use alias_free_shadows::cpu::pair_groups::{chunk_needs, pair_groups};
 use alias_free_shadows::cpu::resolve::{resolve_hard, resolve_soft};
 use alias_free_shadows::cpu::texel_lists::{build_texel_lists, tile_occupancy, NOT_LISTED};
 use alias_free_shadows::cpu::tile_bin::{bin_pairs, caster_face_from_gpu, BinClusters, TILE};
@@ -146,7 +151,7 @@ fn check_hard_passes(
         LightView::Point { position } => ClusterLight::Point(position),
         LightView::Directional { direction } => ClusterLight::Directional(direction),
     };
-    let (pair_count, total, _) = check_bins(ctx, pipeline, inp, faces, tpr, cluster_light);
+    let (pair_count, total, _, _) = check_bins(ctx, pipeline, inp, faces, tpr, cluster_light);
 
     // Hard resolve: the shadow flags per list slot to lit per sample.
     let slots: Vec<u32> = read(ctx, &passes.texel_lists.sample_slot, n);
@@ -170,8 +175,11 @@ fn check_hard_passes(
 }
 
 /// The view-sample boxes and tile bins of the last run against their
-/// twins (fed the GPU's lists and pairs); returns (pairs, binned pairs,
-/// bins the twin dropped by blocks of tiles).
+/// twins (fed the GPU's lists and pairs), and for soft shadows the binned
+/// pairs' group bits; returns (pairs, binned pairs, bins the twin dropped
+/// by blocks of tiles, and the (pair, chunk) visits that the twin's bits
+/// rule out per pass over the units with the number soft occlusion
+/// counted).
 /// Hard shadows (`light` not a sphere) get no boxes.
 /// The GPU's boxes (lo with w = 1 when valid, hi) against the twin's, bit
 /// for bit; `what` names them in the messages.
@@ -196,7 +204,7 @@ fn check_bins(
     faces: usize,
     tpr: u32,
     light: ClusterLight,
-) -> (usize, usize, u32) {
+) -> (usize, usize, u32, (u32, u32)) {
     let soft = matches!(light, ClusterLight::Sphere(..));
     let passes = pipeline.passes();
     let tiles = faces * (tpr * tpr) as usize;
@@ -300,7 +308,81 @@ fn check_bins(
         bins.dropped_outside_hull,
         total as u32 + dropped
     );
-    (pair_count, total, bins.dropped_by_blocks)
+    let group_dropped = match soft {
+        true => {
+            let samples = (&positions[..], &tile_offsets[..], &boxes[..], blocks.len());
+            let binned = (&offsets[..], &tile_pairs[..], &pairs[..], &triangles[..]);
+            check_pair_groups(ctx, pipeline, samples, binned, light)
+        }
+        false => 0,
+    };
+    let counted = c[counter::CLUSTER_GROUPS];
+    (
+        pair_count,
+        total,
+        bins.dropped_by_blocks,
+        (group_dropped, counted),
+    )
+}
+
+/// The listed samples, their offsets per tile, the tiles' boxes and the
+/// number of blocks' boxes.
+type ListedSamples<'a> = (&'a [Vec3], &'a [u32], &'a [Option<TileBox>], usize);
+/// The tile lists' offsets and pairs, the pairs, and the triangles.
+type BinnedPairs<'a> = (
+    &'a [u32],
+    &'a [u32],
+    &'a [CasterFace],
+    &'a [([Vec3; 3], bool)],
+);
+
+/// The group boxes (after the tiles' and blocks' boxes) and each binned
+/// pair's group bits against their twins; returns the (pair, chunk) visits
+/// that the twin's bits rule out, per pass over the units.
+fn check_pair_groups(
+    ctx: &GpuContext,
+    pipeline: &ShadowPipeline,
+    (positions, sample_offsets, boxes, blocks): ListedSamples,
+    (pair_offsets, tile_pairs, pairs, triangles): BinnedPairs,
+    light: ClusterLight,
+) -> u32 {
+    let passes = pipeline.passes();
+    let groups = group_boxes(positions);
+    let at = boxes.len() + blocks;
+    let gpu_boxes: Vec<[f32; 4]> = read(ctx, &passes.clusters.boxes, 2 * (at + groups.len()));
+    assert_boxes_equal(&gpu_boxes[2 * at..], &groups, "group");
+    let pair_triangles: Vec<_> = pairs
+        .iter()
+        .map(|p| triangles[p.triangle as usize])
+        .collect();
+    let want = pair_groups(
+        pair_offsets,
+        tile_pairs,
+        &pair_triangles,
+        sample_offsets,
+        &groups,
+        &light,
+    );
+    let got: Vec<u32> = read(ctx, &passes.pair_groups.groups, tile_pairs.len());
+    for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+        assert_eq!(g, w, "slot {k} (pair {}): group bits", tile_pairs[k]);
+    }
+    // Per tile with a box: each chunk of 64 of its samples against each
+    // of its pairs.
+    let mut dropped = 0u32;
+    for (t, w) in pair_offsets.windows(2).enumerate() {
+        let (first, end) = (sample_offsets[t], sample_offsets[t + 1]);
+        if boxes[t].is_none() {
+            continue;
+        }
+        for chunk in (first..end).step_by(64) {
+            dropped += want[w[0] as usize..w[1] as usize]
+                .iter()
+                .filter(|&&bits| !chunk_needs(bits, chunk, first, end))
+                .count() as u32;
+        }
+    }
+    dropped
 }
 
 #[test]
@@ -333,8 +415,10 @@ fn hard_passes_match_their_twins() {
 
 /// Runs the soft passes on `inp` for the bench's sphere light with
 /// `samples` light samples at `texels` light texels per face side, and
-/// checks the boxes and bins against their twins; returns the output, the
-/// light, and the bins the twin dropped by blocks of tiles.
+/// checks the boxes, bins and group bits against their twins, and the
+/// (pair, chunk) visits occlusion dropped by those bits against the
+/// twin's; returns the output, the light, the bins the twin dropped by
+/// blocks of tiles, and those visits.
 fn run_soft_checked(
     ctx: &GpuContext,
     pipeline: &mut ShadowPipeline,
@@ -342,7 +426,7 @@ fn run_soft_checked(
     settings: &ShadowSettings,
     samples: u32,
     texels: u32,
-) -> (ShadowOutput, SoftLight, u32) {
+) -> (ShadowOutput, SoftLight, u32, u32) {
     let light = common::sphere_light(&inp.desc, samples);
     let eye = inp.desc.camera.eye;
     let (sl, lv): (SoftLight, LightView) = render::soft_light(&light, eye, settings).unwrap();
@@ -361,8 +445,50 @@ fn run_soft_checked(
     };
     let sphere = ClusterLight::Sphere(position, sl.bounds().1);
     let tpr = texels.div_ceil(TILE);
-    let (_, _, dropped) = check_bins(ctx, pipeline, inp, lv.face_count(), tpr, sphere);
-    (out, sl, dropped)
+    let (_, _, dropped, (by_groups, counted)) =
+        check_bins(ctx, pipeline, inp, lv.face_count(), tpr, sphere);
+    // Exact mode runs every unit once per block of light samples.
+    let runs = match settings.mode {
+        SoftMode::Exact => sl.blocks() as u32,
+        _ => 1,
+    };
+    assert_eq!(
+        counted,
+        runs * by_groups,
+        "(pair, chunk) visits dropped by the groups' bits"
+    );
+    (out, sl, dropped, by_groups)
+}
+
+/// Few light texels for the view, so that a tile holds several groups of
+/// samples (`CLUSTER_GROUP_SAMPLES`): the group boxes and each binned
+/// pair's group bits against the twin's, and the visits they drop, in each
+/// mode (the clusters' tests check that the masks stay those of a run
+/// without them).
+#[test]
+fn soft_pair_groups_match_their_twin() {
+    let ctx = GpuContext::new(&ContextOptions::validated()).unwrap();
+    let mut pipeline = ShadowPipeline::new(&ctx).unwrap();
+    let mut by_groups = 0;
+    for (spec, texels) in [("builtin:torus_knot:2000", 8), ("builtin:demo", 16)] {
+        let inp = inputs(spec, 96);
+        for (mode, samples) in [
+            (SoftMode::Lut, 128),
+            (SoftMode::Exact, 200),
+            (SoftMode::Approx, 128),
+        ] {
+            let settings = ShadowSettings {
+                mode,
+                ..Default::default()
+            };
+            let (_, _, _, dropped) =
+                run_soft_checked(&ctx, &mut pipeline, &inp, &settings, samples, texels);
+            eprintln!("{spec}, {mode:?}: {dropped} (pair, chunk) visits dropped by groups");
+            by_groups += dropped;
+        }
+    }
+    assert!(by_groups > 0, "some group must drop a pair");
+    ctx.check_validation().unwrap();
 }
 
 /// Soft casters whose rectangles span many tiles are binned by blocks of
@@ -379,7 +505,8 @@ fn soft_bins_by_blocks_match_their_twin() {
     ] {
         let inp = inputs(spec, 48);
         let settings = ShadowSettings::default();
-        let (_, _, dropped) = run_soft_checked(&ctx, &mut pipeline, &inp, &settings, 128, texels);
+        let (_, _, dropped, _) =
+            run_soft_checked(&ctx, &mut pipeline, &inp, &settings, 128, texels);
         eprintln!("{spec}: {dropped} bins dropped by blocks");
         by_blocks += dropped;
     }
@@ -402,7 +529,8 @@ fn soft_resolve_matches_its_twin() {
             inp.gpu_triangles.len(),
             true,
         );
-        let (out, sl, _) = run_soft_checked(&ctx, &mut pipeline, &inp, &settings, samples, texels);
+        let (out, sl, _, _) =
+            run_soft_checked(&ctx, &mut pipeline, &inp, &settings, samples, texels);
         let passes = pipeline.passes();
         let n = inp.samples.len();
         let words = sl.mask_words();

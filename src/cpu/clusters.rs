@@ -31,6 +31,14 @@ pub const CLUSTER_BLOCK_MIN_TILES: u32 = 4;
 /// (`CLUSTER_BLOCK_PAIR_TILES`).
 pub const CLUSTER_BLOCK_PAIR_TILES: u32 = 64;
 
+/// Listed samples per group (`CLUSTER_GROUP_SAMPLES`): the groups of the
+/// lists' order (tile-major) whose boxes [`crate::cpu::pair_groups`] tests
+/// a tile's pairs against, once per group instead of once per chunk of 64.
+pub const CLUSTER_GROUP_SAMPLES: u32 = 512;
+/// A pair's group bits cover its tile's first this many groups
+/// (`CLUSTER_GROUP_BITS`); past them every group keeps it.
+pub const CLUSTER_GROUP_BITS: u32 = 32;
+
 /// The box of a tile's listed samples (camera-relative).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TileBox {
@@ -49,6 +57,23 @@ pub fn tile_boxes(offsets: &[u32], positions: &[Vec3]) -> Vec<Option<TileBox>> {
         .map(|w| {
             let s = &positions[w[0] as usize..w[1] as usize];
             if s.is_empty() || s.len() > CLUSTER_MAX_SAMPLES || !s.iter().all(|x| x.is_finite()) {
+                return None;
+            }
+            let lo = s.iter().fold(Vec3::INFINITY, |a, &x| a.min(x));
+            let hi = s.iter().fold(Vec3::NEG_INFINITY, |a, &x| a.max(x));
+            Some(TileBox { lo, hi })
+        })
+        .collect()
+}
+
+/// Per group of [`CLUSTER_GROUP_SAMPLES`] consecutive listed samples
+/// (`positions`, the lists' order), their box, `None` where one is not
+/// finite (`clusters_bounds.comp` with `BLOCKS = 2`).
+pub fn group_boxes(positions: &[Vec3]) -> Vec<Option<TileBox>> {
+    positions
+        .chunks(CLUSTER_GROUP_SAMPLES as usize)
+        .map(|s| {
+            if !s.iter().all(|x| x.is_finite()) {
                 return None;
             }
             let lo = s.iter().fold(Vec3::INFINITY, |a, &x| a.min(x));

@@ -8,6 +8,8 @@
 //!   caster for it;
 //! - [`casters`]: caster planes and conservative projections;
 //! - [`tile_bin`]: the pairs binned per tile;
+//! - [`pair_groups`]: per binned pair, the groups of its tile's samples it
+//!   may shadow;
 //! - [`occlusion`]: hard-shadow occlusion over the touched texels;
 //! - [`plane_lut`]: the plane look-up texture;
 //! - [`soft_occlusion`]: the light samples a caster hides from a view sample;
@@ -20,6 +22,7 @@ pub mod clusters;
 pub mod hard_shadows;
 pub mod light_view;
 pub mod occlusion;
+pub mod pair_groups;
 pub mod plane_lut;
 pub mod resolve;
 pub mod scan;

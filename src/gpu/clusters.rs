@@ -13,9 +13,13 @@
 //! `keep_pairs`): on lavapipe every lane runs every iteration, so only a
 //! shorter loop saves time. The rules are occlusion's own per-sample early
 //! outs taken for a whole box with a margin far above their rounding: the
-//! masks stay bit-identical. CPU twin: [`crate::cpu::clusters`].
+//! masks stay bit-identical. Where a tile holds thousands of samples, the
+//! chunk rules would judge each of its pairs once per chunk: the boxes of
+//! groups of [`CLUSTER_GROUP_SAMPLES`] listed samples (after the blocks')
+//! let [`crate::gpu::pair_groups`] judge them once per group first. CPU
+//! twin: [`crate::cpu::clusters`].
 
-use crate::cpu::clusters::CLUSTER_BLOCK;
+use crate::cpu::clusters::{CLUSTER_BLOCK, CLUSTER_GROUP_SAMPLES};
 use crate::gpu::dispatch::{groups, storage, RGBA32UI};
 use crate::gpu::light_frame::{LightFrame, Recording};
 use crate::gpu::shaders;
@@ -30,9 +34,11 @@ use crate::Result;
 pub struct ClusterPass {
     bounds: ComputePipeline,
     block_bounds: ComputePipeline,
+    group_bounds: ComputePipeline,
     /// Per tile, then per block of [`CLUSTER_BLOCK`]² tiles (face by face,
     /// row by row; tile binning tests the pairs of many tiles against
-    /// them first): two `vec4`, lo (w: 1 when valid) and hi.
+    /// them first), then per group of [`CLUSTER_GROUP_SAMPLES`] listed
+    /// samples: two `vec4`, lo (w: 1 when valid) and hi.
     pub boxes: GrowBuffer,
     /// When false the boxes are all invalid (zeros): nothing is culled.
     pub enabled: bool,
@@ -57,6 +63,7 @@ impl ClusterPass {
         Ok(ClusterPass {
             bounds: make("clusters_bounds", &[])?,
             block_bounds: make("clusters_block_bounds", &[(1, 1)])?,
+            group_bounds: make("clusters_group_bounds", &[(1, 2)])?,
             boxes: GrowBuffer::storage("cluster_boxes"),
             enabled: true,
         })
@@ -67,10 +74,16 @@ impl ClusterPass {
         frame.faces * frame.tiles_per_row.div_ceil(CLUSTER_BLOCK).pow(2)
     }
 
-    /// Sizes the boxes for the frame's tiles and blocks.
+    /// Groups of listed samples the frame can have (every view sample
+    /// listed).
+    pub fn groups(frame: &LightFrame) -> u32 {
+        frame.n.div_ceil(CLUSTER_GROUP_SAMPLES)
+    }
+
+    /// Sizes the boxes for the frame's tiles, blocks and groups.
     pub fn prepare(&mut self, ctx: &GpuContext, frame: &LightFrame) -> Result<()> {
-        self.boxes
-            .get(ctx, 32 * (frame.tiles + Self::blocks(frame)) as u64)?;
+        let boxes = frame.tiles as u64 + Self::blocks(frame) as u64 + Self::groups(frame) as u64;
+        self.boxes.get(ctx, 32 * boxes)?;
         Ok(())
     }
 
@@ -81,6 +94,7 @@ impl ClusterPass {
     pub fn record(&self, r: &mut Recording, lists: &TexelListPass, soft: bool) -> Result<()> {
         let tiles = r.frame.tiles;
         let blocks = Self::blocks(&r.frame);
+        let sample_groups = Self::groups(&r.frame);
         r.pass("cluster_bounds", |rec, pc| {
             if !self.enabled || !soft {
                 rec.fill_buffer(self.boxes.slice(), 0)?;
@@ -96,6 +110,7 @@ impl ClusterPass {
             rec.dispatch(&self.bounds, &bindings, pc, groups(tiles))?;
             rec.barrier(Barrier::ComputeToCompute);
             rec.dispatch(&self.block_bounds, &bindings, pc, groups(blocks))?;
+            rec.dispatch(&self.group_bounds, &bindings, pc, groups(sample_groups))?;
             rec.barrier(Barrier::ComputeToCompute);
             Ok(())
         })
@@ -115,6 +130,14 @@ mod tests {
         let define = |name: &str| crate::gpu::shared::tests::glsl_define(glsl, name);
         use crate::cpu::clusters::*;
         assert_eq!(define("CLUSTER_BLOCK"), Some(CLUSTER_BLOCK as u64));
+        assert_eq!(
+            define("CLUSTER_GROUP_SAMPLES"),
+            Some(CLUSTER_GROUP_SAMPLES as u64)
+        );
+        assert_eq!(
+            define("CLUSTER_GROUP_BITS"),
+            Some(CLUSTER_GROUP_BITS as u64)
+        );
         assert_eq!(
             define("CLUSTER_BLOCK_MIN_TILES"),
             Some(CLUSTER_BLOCK_MIN_TILES as u64)

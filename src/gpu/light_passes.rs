@@ -14,6 +14,7 @@ use crate::gpu::light_frame::{CasterRound, Recording, UNITS_INDIRECT};
 use crate::gpu::light_frame::{LightFrame, LightInputs};
 use crate::gpu::light_view::LightViewPass;
 use crate::gpu::occlusion::OcclusionPass;
+use crate::gpu::pair_groups::PairGroupPass;
 use crate::gpu::pass_clock::PassClock;
 use crate::gpu::plane_lut::PlaneLutPass;
 use crate::gpu::resolve::ResolvePass;
@@ -101,6 +102,10 @@ pub struct LightPasses {
     /// §3.2: conservative rasterization of the pairs, binned per tile, and
     /// the occlusion work units.
     pub tile_bin: TileBinPass,
+    /// Soft shadows: per binned pair, the groups of its tile's samples it
+    /// may shadow (Sintorn et al. 2014's clusters, one level above the
+    /// occlusion units' own).
+    pub pair_groups: PairGroupPass,
     /// §3.3: hard-shadow occlusion (one shadow flag per view sample).
     pub occlusion: OcclusionPass,
     /// §4.2: the plane look-up texture, kept across runs of the same light
@@ -131,6 +136,7 @@ impl LightPasses {
             clusters: ClusterPass::new(ctx)?,
             casters: CasterPass::new(ctx)?,
             tile_bin: TileBinPass::new(ctx)?,
+            pair_groups: PairGroupPass::new(ctx)?,
             occlusion: OcclusionPass::new(ctx)?,
             plane_lut: PlaneLutPass::new(ctx)?,
             soft_occlusion: SoftOcclusionPass::new(ctx)?,
@@ -194,6 +200,9 @@ impl LightPasses {
         self.prepare(ctx, &frame, soft, inputs.alpha_casters)?;
         self.tile_bin
             .prepare_for_caller(ctx, &frame, pair_capacity)?;
+        if soft.is_some() {
+            self.pair_groups.prepare(ctx, &self.tile_bin)?;
+        }
         self.texel_lists.reserve_scan(&frame)?;
         self.occlusion.shadowed.get(ctx, 4 * frame.n as u64)?;
         Ok(())
@@ -260,6 +269,7 @@ impl LightPasses {
             clusters,
             casters,
             tile_bin,
+            pair_groups,
             occlusion,
             plane_lut,
             soft_occlusion,
@@ -274,6 +284,7 @@ impl LightPasses {
             clusters,
             casters,
             tile_bin,
+            pair_groups,
             occlusion,
             plane_lut,
             soft_occlusion,
@@ -359,7 +370,9 @@ impl LightPasses {
             + self.tile_bin.bytes()
             + self.resolve.result.len();
         if let Some(sl) = soft {
-            buffer_bytes += self.soft_occlusion.blocked.len() + self.resolve.visible.len();
+            buffer_bytes += self.soft_occlusion.blocked.len()
+                + self.resolve.visible.len()
+                + self.pair_groups.bytes();
             if sl.uses_table() {
                 buffer_bytes += self.plane_lut.table().map_or(0, |t| t.size());
             }
@@ -389,6 +402,7 @@ struct Stages<'p> {
     clusters: &'p mut ClusterPass,
     casters: &'p mut CasterPass,
     tile_bin: &'p mut TileBinPass,
+    pair_groups: &'p mut PairGroupPass,
     occlusion: &'p mut OcclusionPass,
     plane_lut: &'p mut PlaneLutPass,
     soft_occlusion: &'p mut SoftOcclusionPass,
@@ -410,6 +424,7 @@ fn record_passes(
         clusters,
         casters,
         tile_bin,
+        pair_groups,
         occlusion,
         plane_lut,
         soft_occlusion,
@@ -441,6 +456,7 @@ fn record_passes(
         let tests = (
             &mut *casters,
             &mut *tile_bin,
+            &mut *pair_groups,
             &mut *occlusion,
             &mut *soft_occlusion,
         );
@@ -464,7 +480,8 @@ fn record_passes(
 
 /// One round of casters: each caster's planes and its projection or
 /// influence region (§3.3, §4.1), conservatively rasterized and binned per
-/// tile, less the tiles whose box it cannot shadow (§3.2); then every
+/// tile, less the tiles whose box it cannot shadow (§3.2), and (soft) the
+/// groups of each tile's samples it cannot shadow; then every
 /// listed view sample against its tile's casters (§3.3, §4.2): one bit, or
 /// a light-sample bitmask ORed over the casters (and over the rounds
 /// before, unless `first`). `Some` when the binned pairs pass the binding
@@ -477,9 +494,10 @@ fn cast(
         &ClusterPass,
         &PlaneLutPass,
     ),
-    (casters, tile_bin, occlusion, soft_occlusion): (
+    (casters, tile_bin, pair_groups, occlusion, soft_occlusion): (
         &mut CasterPass,
         &mut TileBinPass,
+        &mut PairGroupPass,
         &mut OcclusionPass,
         &mut SoftOcclusionPass,
     ),
@@ -514,7 +532,10 @@ fn cast(
     match soft {
         None => occlusion.record(r, (texel_lists, casters, tile_bin), counters, first)?,
         Some(sl) => {
-            let inputs = (texel_lists, &*casters, &*tile_bin, clusters);
+            // Sintorn et al. 2014, one level up: each pair against the
+            // boxes of its tile's groups of samples, before the units.
+            pair_groups.record(r, (texel_lists, &*casters, &*tile_bin, clusters))?;
+            let inputs = (texel_lists, &*casters, &*tile_bin, clusters, &*pair_groups);
             soft_occlusion.record(r, sl, plane_lut.table(), inputs, counters, first)?;
         }
     }

@@ -14,6 +14,8 @@
 //!   region (§3.3, §4.1);
 //! - [`tile_bin`]: the conservative rasterization of those over tiles of
 //!   light texels, and the occlusion work units (§3.2);
+//! - [`pair_groups`]: per binned pair, the groups of its tile's samples it
+//!   may shadow (soft shadows: a chunk skips the pairs its groups dropped);
 //! - [`plane_lut`]: the plane look-up texture of a light with extent (§4.2);
 //! - [`occlusion`] (one bit) and [`soft_occlusion`] (light-sample bitmasks):
 //!   every listed view sample against its tile's casters (§3.3, §4.2);
@@ -35,6 +37,7 @@ pub mod light_frame;
 pub mod light_passes;
 pub mod light_view;
 pub mod occlusion;
+pub mod pair_groups;
 pub mod pass_clock;
 pub mod plane_lut;
 pub mod resolve;

@@ -237,9 +237,13 @@ pub mod counter {
     /// Caster setup, soft shadows: the large pairs listed for tile
     /// binning's by-blocks pipeline (`large_pair` in `shadow_common.glsl`).
     pub const LARGE_PAIRS: usize = 28;
+    /// Soft occlusion: of [`CLUSTER_CHUNK`]'s visits, those that the boxes
+    /// of the groups of samples the chunk lies in dropped
+    /// (`pair_groups.comp`) before the chunk's own tests.
+    pub const CLUSTER_GROUPS: usize = 29;
     /// Number of counter slots (`COUNTER_COUNT`): `u32`s in the counter
     /// buffer.
-    pub const COUNT: usize = 29;
+    pub const COUNT: usize = 30;
 
     /// The (low, high) slot pairs that hold 64-bit sums (the high word
     /// right after the low one: `count_wide` in soft_occlusion.comp).
@@ -426,6 +430,7 @@ pub(crate) mod tests {
             ("BIN_BEYOND_REACH", counter::BIN_BEYOND_REACH),
             ("BIN_OUTSIDE_HULL", counter::BIN_OUTSIDE_HULL),
             ("LARGE_PAIRS", counter::LARGE_PAIRS),
+            ("CLUSTER_GROUPS", counter::CLUSTER_GROUPS),
             ("COUNT", counter::COUNT),
         ] {
             assert_eq!(

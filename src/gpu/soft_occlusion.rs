@@ -18,6 +18,7 @@ use crate::gpu::clusters::ClusterPass;
 use crate::gpu::dispatch::{groups, groups_2d, require_occlusion_subgroup_ops, storage, RGBA32UI};
 use crate::gpu::light_frame::LightFrame;
 use crate::gpu::light_frame::{CasterRound, Recording, UNITS_INDIRECT};
+use crate::gpu::pair_groups::PairGroupPass;
 use crate::gpu::shaders;
 use crate::gpu::shared::{counter, LightPush};
 use crate::gpu::soft_light::{
@@ -33,13 +34,15 @@ use crate::{Error, Result};
 use std::collections::HashMap;
 
 /// What soft occlusion reads of the passes before it: the texel lists, the
-/// casters, the tile bins and the view-sample clusters' tile boxes (a
-/// chunk of a tile's samples drops the pairs its own box rules out).
+/// casters, the tile bins, the view-sample clusters' tile boxes (a chunk
+/// of a tile's samples drops the pairs its own box rules out) and the
+/// binned pairs' group bits (and first those its groups' boxes rule out).
 pub type SoftInputs<'a> = (
     &'a TexelListPass,
     &'a CasterPass,
     &'a TileBinPass,
     &'a ClusterPass,
+    &'a PairGroupPass,
 );
 
 /// The most entries of the unsure list (32 B each, one storage binding):
@@ -574,7 +577,7 @@ impl SoftOcclusionPass {
         pipeline: &ComputePipeline,
         (block, start, len): (u32, u32, u32),
         table: Option<&Buffer>,
-        (lists, casters, bins, clusters): SoftInputs,
+        (lists, casters, bins, clusters, pair_groups): SoftInputs,
         counters: &GrowBuffer,
     ) -> Result<()> {
         r.cmd.barrier(Barrier::TransferToCompute);
@@ -605,6 +608,7 @@ impl SoftOcclusionPass {
                 Binding::uniform_texel(&lists.list_sample_index, vk::Format::R32_UINT),
                 Binding::uniform(&self.pixel_rotation),
                 storage(&self.unsure_counts),
+                Binding::uniform_texel(&pair_groups.groups, vk::Format::R32_UINT),
             ];
             let push = bytemuck::bytes_of(&push);
             if len == UNITS_INDIRECT {
@@ -685,7 +689,7 @@ fn occlusion_pipeline(
         name,
         spirv,
         bindings: &[
-            tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb, tb, tb, tb, tb, tb, ub, sb,
+            tb, tb, sb, tb, sb, sb, tb, sb, sb, sb, ub, tb, sb, tb, tb, tb, tb, tb, ub, sb, tb,
         ],
         push_constant_bytes: std::mem::size_of::<LightPush>() as u32,
         specialization: &[
