@@ -4,8 +4,9 @@
 //! is clear where soft occlusion's chunk rule
 //! ([`crate::cpu::clusters::chunk_rule`]) drops the pair for group `j`'s box
 //! ([`crate::cpu::clusters::group_boxes`]); a group without a box keeps
-//! every pair, and so does a tile whose samples lie in one group (its
-//! chunks' own rules decide). Soft occlusion skips a pair for a chunk of 64
+//! every pair. A tile whose samples lie in one group gets no bits (the GPU
+//! writes none there, and its chunks' own rules decide; the twin gives
+//! `u32::MAX`). Soft occlusion skips a pair for a chunk of 64
 //! samples when the bits of both groups the chunk lies in are clear: the
 //! pair is then one that each of its samples culls, so the masks do not
 //! change.
@@ -57,13 +58,16 @@ pub fn pair_groups(
 
 /// Whether a chunk of 64 listed samples from `chunk_first` (in a tile whose
 /// samples span `tile_first..tile_end`) needs a pair with group bits
-/// `bits` (`soft_occlusion.comp`, `keep_pairs`).
+/// `bits` (`soft_occlusion.comp`, `keep_pairs`; every pair in a tile within
+/// one group, whose bits are not written).
 pub fn chunk_needs(bits: u32, chunk_first: u32, tile_first: u32, tile_end: u32) -> bool {
-    let last = (chunk_first + 63).min(tile_end.max(1) - 1);
+    let tile_last = tile_end.max(1) - 1;
+    let last = (chunk_first + 63).min(tile_last);
     let base = tile_first / CLUSTER_GROUP_SAMPLES;
     let (ga, gb) = (
         chunk_first / CLUSTER_GROUP_SAMPLES - base,
         last / CLUSTER_GROUP_SAMPLES - base,
     );
-    gb >= CLUSTER_GROUP_BITS || bits & (1 << ga | 1 << gb) != 0
+    let one_group = tile_last / CLUSTER_GROUP_SAMPLES == base;
+    one_group || gb >= CLUSTER_GROUP_BITS || bits & (1 << ga | 1 << gb) != 0
 }

@@ -31,9 +31,10 @@ const _: () = assert!(CLUSTER_GROUP_SAMPLES >= 64 && CLUSTER_GROUP_SAMPLES.is_mu
 /// The pipeline and the bits it writes.
 pub struct PairGroupPass {
     pipeline: ComputePipeline,
-    /// Per slot of the tile lists ([`TileBinPass::tile_pairs`]): bit `j`
-    /// set where the pair may shadow a sample of its tile's `j`-th group
-    /// (all set for a tile within one group).
+    /// Per slot of the tile lists ([`TileBinPass::tile_pairs`]) of a tile
+    /// whose samples span several groups: bit `j` set where the pair may
+    /// shadow a sample of its tile's `j`-th group (nothing written for the
+    /// other tiles' slots).
     pub groups: GrowBuffer,
 }
 
@@ -63,8 +64,8 @@ impl PairGroupPass {
     }
 
     /// Records the bits of the binned pairs (after tile binning's
-    /// scatter): one invocation per slot of the tile lists (in a caller's
-    /// recording, of their capacity: the slots past the binned pairs do
+    /// scatter): 16 slots of the tile lists per invocation (in a caller's
+    /// recording, over their capacity: the slots past the binned pairs do
     /// nothing).
     pub fn record(
         &mut self,
@@ -72,7 +73,8 @@ impl PairGroupPass {
         (lists, casters, bins, clusters): (&TexelListPass, &CasterPass, &TileBinPass, &ClusterPass),
     ) -> Result<()> {
         self.prepare(r.ctx, bins)?;
-        let slots = bins.tile_pairs.len() / 4;
+        // SLOTS_PER_LANE (16) per invocation.
+        let slots = (bins.tile_pairs.len() / 4).div_ceil(16);
         let groups_buf = &self.groups;
         let pipeline = &self.pipeline;
         r.pass("pair_groups", |rec, pc| {
