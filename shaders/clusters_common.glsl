@@ -355,6 +355,12 @@ uint cluster_block_box(uint face, uvec2 block) {
 // A pair's group bits (pair_groups.comp) cover a tile's first 32 groups;
 // past them, every group keeps the pair.
 #define CLUSTER_GROUP_BITS 32u
+// Only tiles whose samples span at least this many groups get bits (the
+// others' chunks go by their own rules): in fewer, the groups dropped too
+// little for what they cost (ToyCar, pass and occlusion ms: 21.5 + 424
+// from two groups, 18.2 + 427 from five, 13.4 + 446 from nine;
+// torus_knot:100000's pass 18.3 -> 2.1 ms from five).
+#define CLUSTER_GROUP_MIN 5u
 uint cluster_group_box(uint g) {
     return cluster_block_box(pc.sizes.w, uvec2(0u)) + 2u * g;
 }

@@ -1,14 +1,14 @@
 #version 450
 // Per binned pair of a tile (slot k of the tile lists) whose samples span
-// several groups (clusters_common.glsl, CLUSTER_GROUP_SAMPLES): which of
-// those groups the pair may shadow, bit j for the tile's j-th group (the
-// first is the one its first sample falls in), clear where soft
-// occlusion's chunk rule (chunk_rule) drops the pair for the group's box,
-// set for a group without a valid box. Tiles within one group get no bits
-// (their chunks' own rules decide). A work unit's chunk of 64 samples lies
-// in one or two groups; it skips a pair whose bits for both are clear
-// (soft_occlusion.comp, keep_pairs): the pair is then one that each of its
-// samples culls. Twin: cpu::pair_groups::pair_groups.
+// at least CLUSTER_GROUP_MIN groups (clusters_common.glsl,
+// CLUSTER_GROUP_SAMPLES): which of those groups the pair may shadow, bit j
+// for the tile's j-th group (the first is the one its first sample falls
+// in), clear where soft occlusion's chunk rule (chunk_rule) drops the pair
+// for the group's box, set for a group without a valid box. Other tiles
+// get no bits (their chunks' own rules decide). A work unit's chunk of 64
+// samples lies in one or two groups; it skips a pair whose bits for both
+// are clear (soft_occlusion.comp, keep_pairs): the pair is then one that
+// each of its samples culls. Twin: cpu::pair_groups::pair_groups.
 #extension GL_GOOGLE_include_directive : require
 #include "clusters_common.glsl"
 layout(local_size_x = WORKGROUP_1D) in;
@@ -24,8 +24,8 @@ layout(set = 0, binding = 5) writeonly buffer PairGroups { uint pair_groups[]; }
 
 // Slots per workgroup: several per lane (on lavapipe a workgroup costs
 // about a microsecond before it does anything), which skip the slots of
-// tiles within one group (ToyCar in the Embree bench's view: 4.7 ms for
-// the pass when every slot was visited, most of them in such tiles).
+// tiles without bits (ToyCar in the Embree bench's view: 4.7 ms for the
+// pass when every slot was visited, most of them in such tiles).
 #define SLOTS_PER_LANE 16u
 
 void main() {
@@ -55,8 +55,8 @@ void main() {
         uint begin = offsets[lo * TILE * TILE], last = offsets[(lo + 1u) * TILE * TILE];
         uint g0 = begin / CLUSTER_GROUP_SAMPLES;
         uint groups = last > begin ? (last - 1u) / CLUSTER_GROUP_SAMPLES - g0 + 1u : 1u;
-        if (groups < 2u) {
-            // No bits for a tile within one group: on to this lane's first
+        if (groups < CLUSTER_GROUP_MIN) {
+            // No bits for a tile of few groups: on to this lane's first
             // slot past it.
             k += (tile_offsets[lo + 1u] - k + WORKGROUP_1D - 1u) / WORKGROUP_1D * WORKGROUP_1D;
             continue;

@@ -38,6 +38,10 @@ pub const CLUSTER_GROUP_SAMPLES: u32 = 512;
 /// A pair's group bits cover its tile's first this many groups
 /// (`CLUSTER_GROUP_BITS`); past them every group keeps it.
 pub const CLUSTER_GROUP_BITS: u32 = 32;
+/// Only tiles whose samples span at least this many groups get group bits
+/// (`CLUSTER_GROUP_MIN`): in fewer, the groups dropped too little for what
+/// they cost.
+pub const CLUSTER_GROUP_MIN: u32 = 5;
 
 /// The box of a tile's listed samples (camera-relative).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -4,15 +4,16 @@
 //! is clear where soft occlusion's chunk rule
 //! ([`crate::cpu::clusters::chunk_rule`]) drops the pair for group `j`'s box
 //! ([`crate::cpu::clusters::group_boxes`]); a group without a box keeps
-//! every pair. A tile whose samples lie in one group gets no bits (the GPU
-//! writes none there, and its chunks' own rules decide; the twin gives
-//! `u32::MAX`). Soft occlusion skips a pair for a chunk of 64
+//! every pair. A tile whose samples span fewer than [`CLUSTER_GROUP_MIN`]
+//! groups gets no bits (the GPU writes none there, and its chunks' own
+//! rules decide; the twin gives `u32::MAX`). Soft occlusion skips a pair for a chunk of 64
 //! samples when the bits of both groups the chunk lies in are clear: the
 //! pair is then one that each of its samples culls, so the masks do not
 //! change.
 
 use super::clusters::{
-    chunk_rule, cluster_plane, ClusterLight, TileBox, CLUSTER_GROUP_BITS, CLUSTER_GROUP_SAMPLES,
+    chunk_rule, cluster_plane, ClusterLight, TileBox, CLUSTER_GROUP_BITS, CLUSTER_GROUP_MIN,
+    CLUSTER_GROUP_SAMPLES,
 };
 use glam::Vec3;
 
@@ -38,9 +39,9 @@ pub fn pair_groups(
             false => 1,
         };
         for k in w[0] as usize..w[1] as usize {
-            out[k] = match groups {
-                1 => u32::MAX,
-                _ => {
+            out[k] = match groups < CLUSTER_GROUP_MIN {
+                true => u32::MAX,
+                false => {
                     let (v, closed) = pair_triangles[tile_pairs[k] as usize];
                     let plane = cluster_plane(v, closed, light);
                     (0..groups.min(CLUSTER_GROUP_BITS))
@@ -58,8 +59,8 @@ pub fn pair_groups(
 
 /// Whether a chunk of 64 listed samples from `chunk_first` (in a tile whose
 /// samples span `tile_first..tile_end`) needs a pair with group bits
-/// `bits` (`soft_occlusion.comp`, `keep_pairs`; every pair in a tile within
-/// one group, whose bits are not written).
+/// `bits` (`soft_occlusion.comp`, `keep_pairs`; every pair in a tile of
+/// fewer than [`CLUSTER_GROUP_MIN`] groups, whose bits are not written).
 pub fn chunk_needs(bits: u32, chunk_first: u32, tile_first: u32, tile_end: u32) -> bool {
     let tile_last = tile_end.max(1) - 1;
     let last = (chunk_first + 63).min(tile_last);
@@ -68,6 +69,6 @@ pub fn chunk_needs(bits: u32, chunk_first: u32, tile_first: u32, tile_end: u32) 
         chunk_first / CLUSTER_GROUP_SAMPLES - base,
         last / CLUSTER_GROUP_SAMPLES - base,
     );
-    let one_group = tile_last / CLUSTER_GROUP_SAMPLES == base;
-    one_group || gb >= CLUSTER_GROUP_BITS || bits & (1 << ga | 1 << gb) != 0
+    let few_groups = tile_last / CLUSTER_GROUP_SAMPLES - base + 1 < CLUSTER_GROUP_MIN;
+    few_groups || gb >= CLUSTER_GROUP_BITS || bits & (1 << ga | 1 << gb) != 0
 }

@@ -138,6 +138,7 @@ mod tests {
             define("CLUSTER_GROUP_BITS"),
             Some(CLUSTER_GROUP_BITS as u64)
         );
+        assert_eq!(define("CLUSTER_GROUP_MIN"), Some(CLUSTER_GROUP_MIN as u64));
         assert_eq!(
             define("CLUSTER_BLOCK_MIN_TILES"),
             Some(CLUSTER_BLOCK_MIN_TILES as u64)

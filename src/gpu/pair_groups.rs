@@ -32,9 +32,9 @@ const _: () = assert!(CLUSTER_GROUP_SAMPLES >= 64 && CLUSTER_GROUP_SAMPLES.is_mu
 pub struct PairGroupPass {
     pipeline: ComputePipeline,
     /// Per slot of the tile lists ([`TileBinPass::tile_pairs`]) of a tile
-    /// whose samples span several groups: bit `j` set where the pair may
-    /// shadow a sample of its tile's `j`-th group (nothing written for the
-    /// other tiles' slots).
+    /// whose samples span at least `CLUSTER_GROUP_MIN` groups: bit `j` set
+    /// where the pair may shadow a sample of its tile's `j`-th group
+    /// (nothing written for the other tiles' slots).
     pub groups: GrowBuffer,
 }
 
