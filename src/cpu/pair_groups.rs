@@ -6,10 +6,10 @@
 //! ([`crate::cpu::clusters::group_boxes`]); a group without a box keeps
 //! every pair. A tile whose samples span fewer than [`CLUSTER_GROUP_MIN`]
 //! groups gets no bits (the GPU writes none there, and its chunks' own
-//! rules decide; the twin gives `u32::MAX`). Soft occlusion skips a pair for a chunk of 64
-//! samples when the bits of both groups the chunk lies in are clear: the
-//! pair is then one that each of its samples culls, so the masks do not
-//! change.
+//! rules decide; the twin gives `u32::MAX`). Soft occlusion skips a pair
+//! for a chunk of 64 samples when the bits of both groups the chunk lies
+//! in are clear: the pair is then one that each of its samples culls, so
+//! the masks do not change.
 
 use super::clusters::{
     chunk_rule, cluster_plane, ClusterLight, TileBox, CLUSTER_GROUP_BITS, CLUSTER_GROUP_MIN,

@@ -24,6 +24,10 @@ use crate::vulkan::{
 };
 use crate::Result;
 
+/// Slots of the tile lists per invocation (`SLOTS_PER_LANE` in
+/// `pair_groups.comp`).
+const SLOTS_PER_LANE: u64 = 16;
+
 // A chunk of 64 samples lies in at most two groups (keep_pairs tests two
 // bits).
 const _: () = assert!(CLUSTER_GROUP_SAMPLES >= 64 && CLUSTER_GROUP_SAMPLES.is_multiple_of(64));
@@ -64,8 +68,8 @@ impl PairGroupPass {
     }
 
     /// Records the bits of the binned pairs (after tile binning's
-    /// scatter): 16 slots of the tile lists per invocation (in a caller's
-    /// recording, over their capacity: the slots past the binned pairs do
+    /// scatter): [`SLOTS_PER_LANE`] slots of the tile lists per invocation
+    /// (over the list's capacity: the slots past the binned pairs do
     /// nothing).
     pub fn record(
         &mut self,
@@ -73,8 +77,7 @@ impl PairGroupPass {
         (lists, casters, bins, clusters): (&TexelListPass, &CasterPass, &TileBinPass, &ClusterPass),
     ) -> Result<()> {
         self.prepare(r.ctx, bins)?;
-        // SLOTS_PER_LANE (16) per invocation.
-        let slots = (bins.tile_pairs.len() / 4).div_ceil(16);
+        let invocations = (bins.tile_pairs.len() / 4).div_ceil(SLOTS_PER_LANE);
         let groups_buf = &self.groups;
         let pipeline = &self.pipeline;
         r.pass("pair_groups", |rec, pc| {
@@ -87,7 +90,7 @@ impl PairGroupPass {
                 Binding::uniform_texel(&clusters.boxes, RGBA32UI),
                 storage(groups_buf),
             ];
-            rec.dispatch(pipeline, &bindings, pc, groups(slots.max(1) as u32))?;
+            rec.dispatch(pipeline, &bindings, pc, groups(invocations.max(1) as u32))?;
             rec.barrier(Barrier::ComputeToCompute);
             Ok(())
         })
@@ -96,5 +99,15 @@ impl PairGroupPass {
     /// Bytes this run binds.
     pub fn bytes(&self) -> u64 {
         self.groups.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn slots_per_lane_match_the_shader() {
+        let glsl = include_str!("../../shaders/pair_groups.comp");
+        let define = crate::gpu::shared::tests::glsl_define(glsl, "SLOTS_PER_LANE");
+        assert_eq!(define, Some(super::SLOTS_PER_LANE));
     }
 }
