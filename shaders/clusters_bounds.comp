@@ -46,21 +46,29 @@ void block_box(uint b) {
     boxes[at + 1u] = vec4(hi, 0.0);
 }
 
+// The box of listed samples begin..end (inverted when empty); whether
+// every one is finite.
+bool samples_box(uint begin, uint end, out vec3 lo, out vec3 hi) {
+    lo = vec3(1.0 / 0.0);
+    hi = vec3(-1.0 / 0.0);
+    bool finite = true;
+    for (uint s = begin; s < end; s++) {
+        vec3 x = uintBitsToFloat(texelFetch(list_samples_tb, int(s)).xyz);
+        finite = finite && !any(isnan(x)) && !any(isinf(x));
+        lo = min(lo, x);
+        hi = max(hi, x);
+    }
+    return finite;
+}
+
 void group_box(uint g) {
     uint listed = offsets[pc.more.z * pc.sizes.w * TILE * TILE];
     uint begin = g * CLUSTER_GROUP_SAMPLES;
     if (begin >= listed) {
         return;
     }
-    uint end = min(begin + CLUSTER_GROUP_SAMPLES, listed);
-    vec3 lo = vec3(1.0 / 0.0), hi = vec3(-1.0 / 0.0);
-    bool valid = true;
-    for (uint s = begin; s < end; s++) {
-        vec3 x = uintBitsToFloat(texelFetch(list_samples_tb, int(s)).xyz);
-        valid = valid && !any(isnan(x)) && !any(isinf(x));
-        lo = min(lo, x);
-        hi = max(hi, x);
-    }
+    vec3 lo, hi;
+    bool valid = samples_box(begin, min(begin + CLUSTER_GROUP_SAMPLES, listed), lo, hi);
     uint at = cluster_group_box(g);
     boxes[at] = vec4(lo, valid ? 1.0 : 0.0);
     boxes[at + 1u] = vec4(hi, 0.0);
@@ -80,16 +88,9 @@ void main() {
         return;
     }
     uint begin = offsets[t * TILE * TILE], end = offsets[(t + 1u) * TILE * TILE];
-    vec3 lo = vec3(1.0 / 0.0), hi = vec3(-1.0 / 0.0);
     bool valid = end > begin && end - begin <= CLUSTER_MAX_SAMPLES;
-    if (valid) {
-        for (uint s = begin; s < end; s++) {
-            vec3 x = uintBitsToFloat(texelFetch(list_samples_tb, int(s)).xyz);
-            valid = valid && !any(isnan(x)) && !any(isinf(x));
-            lo = min(lo, x);
-            hi = max(hi, x);
-        }
-    }
+    vec3 lo, hi;
+    valid = samples_box(begin, valid ? end : begin, lo, hi) && valid;
     boxes[2u * t] = vec4(lo, valid ? 1.0 : 0.0);
     boxes[2u * t + 1u] = vec4(hi, 0.0);
 }

@@ -364,6 +364,10 @@ uint cluster_block_box(uint face, uvec2 block) {
 uint cluster_group_box(uint g) {
     return cluster_block_box(pc.sizes.w, uvec2(0u)) + 2u * g;
 }
+// The groups that listed samples first..end (a tile's) fall in (0 for none).
+uint cluster_groups_spanned(uint first, uint end) {
+    return end > first ? (end - 1u) / CLUSTER_GROUP_SAMPLES - first / CLUSTER_GROUP_SAMPLES + 1u : 0u;
+}
 
 // Soft occlusion's rule for a chunk of samples (kept_pairs): cull_rule,
 // the box outside the caster's penumbra volume (outside_penumbra), then

@@ -52,30 +52,27 @@ void main() {
         while (tile_offsets[lo + 1u] <= k) {
             lo++;
         }
-        uint begin = offsets[lo * TILE * TILE], last = offsets[(lo + 1u) * TILE * TILE];
-        uint g0 = begin / CLUSTER_GROUP_SAMPLES;
-        uint groups = last > begin ? (last - 1u) / CLUSTER_GROUP_SAMPLES - g0 + 1u : 1u;
+        uint begin = offsets[lo * TILE * TILE];
+        uint groups = cluster_groups_spanned(begin, offsets[(lo + 1u) * TILE * TILE]);
         if (groups < CLUSTER_GROUP_MIN) {
             // No bits for a tile of few groups: on to this lane's first
             // slot past it.
             k += (tile_offsets[lo + 1u] - k + WORKGROUP_1D - 1u) / WORKGROUP_1D * WORKGROUP_1D;
             continue;
         }
-        uint n = min(groups, CLUSTER_GROUP_BITS);
+        uint pi = texelFetch(tile_pairs_tb, int(k)).x;
+        uvec4 t0, t1, t2;
+        soft_pair_triangle(texelFetch(pairs_tb, int(4u * pi + 1u)), texelFetch(pairs_tb, int(4u * pi + 2u)),
+                           texelFetch(pairs_tb, int(4u * pi + 3u)), t0, t1, t2);
+        ClusterPlane plane = triangle_cluster_plane(t0, t1, t2);
+        uint g0 = begin / CLUSTER_GROUP_SAMPLES;
         uint bits = 0u;
-        {
-            uint pi = texelFetch(tile_pairs_tb, int(k)).x;
-            uvec4 t0, t1, t2;
-            soft_pair_triangle(texelFetch(pairs_tb, int(4u * pi + 1u)), texelFetch(pairs_tb, int(4u * pi + 2u)),
-                               texelFetch(pairs_tb, int(4u * pi + 3u)), t0, t1, t2);
-            ClusterPlane plane = triangle_cluster_plane(t0, t1, t2);
-            for (uint j = 0u; j < n; j++) {
-                uint at = cluster_group_box(g0 + j);
-                vec4 box_lo = uintBitsToFloat(texelFetch(boxes_tb, int(at)));
-                vec3 box_hi = uintBitsToFloat(texelFetch(boxes_tb, int(at + 1u)).xyz);
-                bool keep = box_lo.w == 0.0 || chunk_rule(plane, box_lo.xyz, box_hi) == CLUSTER_KEEP;
-                bits |= keep ? 1u << j : 0u;
-            }
+        for (uint j = 0u; j < min(groups, CLUSTER_GROUP_BITS); j++) {
+            uint at = cluster_group_box(g0 + j);
+            vec4 box_lo = uintBitsToFloat(texelFetch(boxes_tb, int(at)));
+            vec3 box_hi = uintBitsToFloat(texelFetch(boxes_tb, int(at + 1u)).xyz);
+            bool keep = box_lo.w == 0.0 || chunk_rule(plane, box_lo.xyz, box_hi) == CLUSTER_KEEP;
+            bits |= keep ? 1u << j : 0u;
         }
         pair_groups[k] = bits;
         k += WORKGROUP_1D;

@@ -429,12 +429,11 @@ uint keep_pairs(OcclusionUnit un, vec3 x, out uint dropped, out uint by_groups, 
     // of fewer than CLUSTER_GROUP_MIN groups, which has no bits, or past
     // the bits: every pair kept).
     uint tile_first = offsets[un.tile * TILE * TILE], tile_end = offsets[(un.tile + 1u) * TILE * TILE];
-    uint tile_last = max(tile_end, 1u) - 1u;
     uint chunk_first = un.slot - lid;
-    uint chunk_last = min(chunk_first + 63u, tile_last);
+    uint chunk_last = min(chunk_first + 63u, max(tile_end, 1u) - 1u);
     uint g0 = tile_first / CLUSTER_GROUP_SAMPLES;
     uint ga = chunk_first / CLUSTER_GROUP_SAMPLES - g0, gb = chunk_last / CLUSTER_GROUP_SAMPLES - g0;
-    bool grouped_tile = tile_last / CLUSTER_GROUP_SAMPLES - g0 + 1u >= CLUSTER_GROUP_MIN && gb < CLUSTER_GROUP_BITS;
+    bool grouped_tile = cluster_groups_spanned(tile_first, tile_end) >= CLUSTER_GROUP_MIN && gb < CLUSTER_GROUP_BITS;
     uint group_bits = grouped_tile ? (1u << ga) | (1u << gb) : 0u;
     // First the pairs that some group of the chunk keeps and whose texel
     // rectangle meets the chunk's (one fetch each; most of the chunk's

@@ -10,8 +10,7 @@
 
 use alias_free_shadows::cpu::casters::CasterFace;
 use alias_free_shadows::cpu::clusters::{
-    block_boxes, group_boxes, tile_boxes, ClusterLight, TileBox, CLUSTER_GROUP_MIN,
-    CLUSTER_GROUP_SAMPLES,
+    block_boxes, group_boxes, groups_spanned, tile_boxes, ClusterLight, TileBox, CLUSTER_GROUP_MIN,
 };
 use alias_free_shadows::cpu::light_view::{fit_windows, LightView};
 use alias_free_shadows::cpu::pair_groups::{chunk_needs, pair_groups};
@@ -367,8 +366,7 @@ fn check_pair_groups(
     let got: Vec<u32> = read(ctx, &passes.pair_groups.groups, tile_pairs.len());
     for (t, w) in pair_offsets.windows(2).enumerate() {
         let (first, end) = (sample_offsets[t], sample_offsets[t + 1]);
-        let size = CLUSTER_GROUP_SAMPLES;
-        if end == first || (end - 1) / size - first / size + 1 < CLUSTER_GROUP_MIN {
+        if groups_spanned(first, end) < CLUSTER_GROUP_MIN {
             continue; // few groups: no bits written (every pair kept)
         }
         for k in w[0] as usize..w[1] as usize {

@@ -60,14 +60,31 @@ pub fn tile_boxes(offsets: &[u32], positions: &[Vec3]) -> Vec<Option<TileBox>> {
         .windows(2)
         .map(|w| {
             let s = &positions[w[0] as usize..w[1] as usize];
-            if s.is_empty() || s.len() > CLUSTER_MAX_SAMPLES || !s.iter().all(|x| x.is_finite()) {
-                return None;
+            match s.is_empty() || s.len() > CLUSTER_MAX_SAMPLES {
+                true => None,
+                false => samples_box(s),
             }
-            let lo = s.iter().fold(Vec3::INFINITY, |a, &x| a.min(x));
-            let hi = s.iter().fold(Vec3::NEG_INFINITY, |a, &x| a.max(x));
-            Some(TileBox { lo, hi })
         })
         .collect()
+}
+
+/// The box of samples `s`, `None` where one is not finite.
+fn samples_box(s: &[Vec3]) -> Option<TileBox> {
+    if !s.iter().all(|x| x.is_finite()) {
+        return None;
+    }
+    let lo = s.iter().fold(Vec3::INFINITY, |a, &x| a.min(x));
+    let hi = s.iter().fold(Vec3::NEG_INFINITY, |a, &x| a.max(x));
+    Some(TileBox { lo, hi })
+}
+
+/// The groups of [`CLUSTER_GROUP_SAMPLES`] that listed samples
+/// `first..end` (a tile's) fall in, 0 for none (`cluster_groups_spanned`).
+pub fn groups_spanned(first: u32, end: u32) -> u32 {
+    match end > first {
+        true => (end - 1) / CLUSTER_GROUP_SAMPLES - first / CLUSTER_GROUP_SAMPLES + 1,
+        false => 0,
+    }
 }
 
 /// Per group of [`CLUSTER_GROUP_SAMPLES`] consecutive listed samples
@@ -76,14 +93,7 @@ pub fn tile_boxes(offsets: &[u32], positions: &[Vec3]) -> Vec<Option<TileBox>> {
 pub fn group_boxes(positions: &[Vec3]) -> Vec<Option<TileBox>> {
     positions
         .chunks(CLUSTER_GROUP_SAMPLES as usize)
-        .map(|s| {
-            if !s.iter().all(|x| x.is_finite()) {
-                return None;
-            }
-            let lo = s.iter().fold(Vec3::INFINITY, |a, &x| a.min(x));
-            let hi = s.iter().fold(Vec3::NEG_INFINITY, |a, &x| a.max(x));
-            Some(TileBox { lo, hi })
-        })
+        .map(samples_box)
         .collect()
 }
 

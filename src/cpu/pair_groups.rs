@@ -12,8 +12,8 @@
 //! the masks do not change.
 
 use super::clusters::{
-    chunk_rule, cluster_plane, ClusterLight, TileBox, CLUSTER_GROUP_BITS, CLUSTER_GROUP_MIN,
-    CLUSTER_GROUP_SAMPLES,
+    chunk_rule, cluster_plane, groups_spanned, ClusterLight, TileBox, CLUSTER_GROUP_BITS,
+    CLUSTER_GROUP_MIN, CLUSTER_GROUP_SAMPLES,
 };
 use glam::Vec3;
 
@@ -34,10 +34,7 @@ pub fn pair_groups(
     for (t, w) in tile_offsets.windows(2).enumerate() {
         let (begin, end) = (sample_offsets[t], sample_offsets[t + 1]);
         let g0 = begin / CLUSTER_GROUP_SAMPLES;
-        let groups = match end > begin {
-            true => (end - 1) / CLUSTER_GROUP_SAMPLES - g0 + 1,
-            false => 1,
-        };
+        let groups = groups_spanned(begin, end);
         for k in w[0] as usize..w[1] as usize {
             out[k] = match groups < CLUSTER_GROUP_MIN {
                 true => u32::MAX,
@@ -62,13 +59,12 @@ pub fn pair_groups(
 /// `bits` (`soft_occlusion.comp`, `keep_pairs`; every pair in a tile of
 /// fewer than [`CLUSTER_GROUP_MIN`] groups, whose bits are not written).
 pub fn chunk_needs(bits: u32, chunk_first: u32, tile_first: u32, tile_end: u32) -> bool {
-    let tile_last = tile_end.max(1) - 1;
-    let last = (chunk_first + 63).min(tile_last);
+    let last = (chunk_first + 63).min(tile_end.max(1) - 1);
     let base = tile_first / CLUSTER_GROUP_SAMPLES;
     let (ga, gb) = (
         chunk_first / CLUSTER_GROUP_SAMPLES - base,
         last / CLUSTER_GROUP_SAMPLES - base,
     );
-    let few_groups = tile_last / CLUSTER_GROUP_SAMPLES - base + 1 < CLUSTER_GROUP_MIN;
+    let few_groups = groups_spanned(tile_first, tile_end) < CLUSTER_GROUP_MIN;
     few_groups || gb >= CLUSTER_GROUP_BITS || bits & (1 << ga | 1 << gb) != 0
 }

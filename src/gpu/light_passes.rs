@@ -510,12 +510,14 @@ fn cast(
     casters.record(r, &light_view.faces, counters)?;
     let bins = (&*casters, texel_lists, clusters);
     tile_bin.record_count(r, bins, counters, soft)?;
-    if r.for_caller.is_some() {
+    // The binned pairs, where the host knows them.
+    let binned = if r.for_caller.is_some() {
         // A caller's recording cannot read the count back: the list has a
         // fixed capacity and the GPU sizes the occlusion dispatches.
         tile_bin.record_scatter(r, None, bins, counters)?;
         tile_bin.record_args(r)?;
         r.frame.set_units(UNITS_INDIRECT);
+        None
     } else {
         r.submit()?;
         // Only now is the number of binned pairs known: past the binding
@@ -528,13 +530,15 @@ fn cast(
         }
         tile_bin.record_scatter(r, Some(totals), bins, counters)?;
         r.frame.set_units(totals.units);
-    }
+        Some(totals.pairs)
+    };
     match soft {
         None => occlusion.record(r, (texel_lists, casters, tile_bin), counters, first)?,
         Some(sl) => {
             // Sintorn et al. 2014, one level up: each pair against the
             // boxes of its tile's groups of samples, before the units.
-            pair_groups.record(r, (texel_lists, &*casters, &*tile_bin, clusters))?;
+            let inputs = (texel_lists, &*casters, &*tile_bin, clusters);
+            pair_groups.record(r, inputs, binned)?;
             let inputs = (texel_lists, &*casters, &*tile_bin, clusters, &*pair_groups);
             soft_occlusion.record(r, sl, plane_lut.table(), inputs, counters, first)?;
         }

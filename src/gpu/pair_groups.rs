@@ -68,16 +68,19 @@ impl PairGroupPass {
     }
 
     /// Records the bits of the binned pairs (after tile binning's
-    /// scatter): [`SLOTS_PER_LANE`] slots of the tile lists per invocation
-    /// (over the list's capacity: the slots past the binned pairs do
-    /// nothing).
+    /// scatter): [`SLOTS_PER_LANE`] slots of the tile lists per invocation,
+    /// over the `binned` pairs the host read back, or over the list's
+    /// capacity in a caller's recording (`None`: the slots past the binned
+    /// pairs do nothing).
     pub fn record(
         &mut self,
         r: &mut Recording,
         (lists, casters, bins, clusters): (&TexelListPass, &CasterPass, &TileBinPass, &ClusterPass),
+        binned: Option<u32>,
     ) -> Result<()> {
         self.prepare(r.ctx, bins)?;
-        let invocations = (bins.tile_pairs.len() / 4).div_ceil(SLOTS_PER_LANE);
+        let slots = binned.map_or(bins.tile_pairs.len() / 4, u64::from);
+        let invocations = slots.div_ceil(SLOTS_PER_LANE);
         let groups_buf = &self.groups;
         let pipeline = &self.pipeline;
         r.pass("pair_groups", |rec, pc| {
