@@ -625,3 +625,27 @@ fn spread_workgroups_match_their_twin() {
     }
     finish(ctx);
 }
+
+/// The soft occlusion pass makes its kernels only when a light first needs
+/// one (18 made up front cost every engine's start 0.5 s on lavapipe), so
+/// no engine run compiles them all any more: this makes every one (each
+/// mode at each block count, the unsure tests, in both rounds, rotated or
+/// not, exact mode's with the wedge rule and without) and fails on any
+/// creation error or validation message.
+#[test]
+fn every_soft_occlusion_kernel_is_made_cleanly() {
+    use alias_free_shadows::gpu::soft_occlusion::SoftOcclusionPass;
+    let ctx = context();
+    let made = {
+        let mut pass = SoftOcclusionPass::new(&ctx).unwrap();
+        assert_eq!(
+            pass.make_every_kernel(&ctx).unwrap(),
+            // 16 look-up kernels (two modes, eight block counts) and the
+            // unsure tests in four variants, exact mode's in eight.
+            18 * 4 + 4
+        );
+        pass.make_every_kernel(&ctx).unwrap()
+    };
+    assert_eq!(made, 76, "a second call makes nothing new");
+    finish(ctx);
+}

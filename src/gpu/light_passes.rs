@@ -128,7 +128,9 @@ pub struct LightPasses {
 }
 
 impl LightPasses {
-    /// Builds every pipeline; no buffer is made before the first run.
+    /// Builds the pipelines, except soft occlusion's kernels, which come
+    /// with the first light that needs each; no buffer is made before the
+    /// first run.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         Ok(LightPasses {
             light_view: LightViewPass::new(ctx)?,

@@ -111,10 +111,12 @@ pub struct SoftOcclusionPass {
     /// Every kernel by (kernel, alpha round, per-pixel rotation, wedge
     /// rule) (specialization constants `ALPHA`, `ROTATION` and
     /// `WEDGE_RULE`; the wedge rule keys only the exact kernel, the others
-    /// compile it out): the plain ones made up front, the others when a
-    /// light first needs them. Kept for the pass's life, so that a command
-    /// buffer recorded before the wedge rule was turned off or on still
-    /// holds live pipelines.
+    /// compile it out), each made when a light first needs it
+    /// ([`SoftOcclusionPass::prepare`]): the 18 plain kernels made up
+    /// front cost every engine's start 0.5 s on lavapipe, most of them
+    /// never used (a hard-shadow run uses none). Kept for the pass's life,
+    /// so that a command buffer recorded before the wedge rule was turned
+    /// off or on still holds live pipelines.
     pipelines: HashMap<(Kernel, bool, bool, bool), ComputePipeline>,
     /// Look-up mode: (slot, triangle, block) and unsure bits per entry
     /// (32 B), in [`UNSURE_SEGMENTS`] segments, kept across frames.
@@ -211,7 +213,8 @@ impl Kernel {
 }
 
 impl SoftOcclusionPass {
-    /// Builds the pipelines.
+    /// Checks the device and makes the buffers' holders; the pipelines
+    /// come with the first light that needs each.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         require_occlusion_subgroup_ops(ctx, "soft occlusion")?;
         let info = ctx.info();
@@ -221,15 +224,7 @@ impl SoftOcclusionPass {
                 info.name, info.limits.max_compute_shared_memory_size
             )));
         }
-        let plain = (1..=8)
-            .flat_map(|b| [Kernel::Sure(b), Kernel::Approx(b)])
-            .chain([Kernel::Exact, Kernel::Unsure]);
-        let pipelines = plain
-            .map(|k| {
-                let wedge = wedge_key(k, true);
-                Ok(((k, false, false, wedge), k.make(ctx, false, false, wedge)?))
-            })
-            .collect::<Result<_>>()?;
+        let pipelines = HashMap::new();
         Ok(SoftOcclusionPass {
             pipelines,
             unsure_list: GrowBuffer::storage("unsure_list"),
@@ -270,14 +265,47 @@ impl SoftOcclusionPass {
             want.extend(alpha_casters.then_some((Kernel::Unsure, true)));
         }
         for (kernel, alpha) in want {
-            let wedge = wedge_key(kernel, self.wedge_rule);
-            if let std::collections::hash_map::Entry::Vacant(e) =
-                self.pipelines.entry((kernel, alpha, rotated, wedge))
-            {
-                e.insert(kernel.make(ctx, alpha, rotated, wedge)?);
-            }
+            self.make_kernel(ctx, kernel, alpha, rotated, self.wedge_rule)?;
         }
         Ok(())
+    }
+
+    /// Makes `kernel`'s pipeline (alpha round, rotation, wedge rule as
+    /// given) unless the pass holds it already.
+    fn make_kernel(
+        &mut self,
+        ctx: &GpuContext,
+        kernel: Kernel,
+        alpha: bool,
+        rotated: bool,
+        wedge_rule: bool,
+    ) -> Result<()> {
+        let wedge = wedge_key(kernel, wedge_rule);
+        if let std::collections::hash_map::Entry::Vacant(e) =
+            self.pipelines.entry((kernel, alpha, rotated, wedge))
+        {
+            e.insert(kernel.make(ctx, alpha, rotated, wedge)?);
+        }
+        Ok(())
+    }
+
+    /// Makes every kernel a light could need (each mode at each block
+    /// count, the unsure tests; in the alpha round or not, rotated or not;
+    /// exact mode's with the wedge rule and without), as
+    /// [`SoftOcclusionPass::prepare`] would: since none is made up front,
+    /// a test calls this to see every pipeline compile and pass validation.
+    /// Returns how many the pass holds.
+    #[doc(hidden)]
+    pub fn make_every_kernel(&mut self, ctx: &GpuContext) -> Result<usize> {
+        let kernels = (1..=MAX_SOFT_SAMPLES / 128)
+            .flat_map(|b| [Kernel::Sure(b), Kernel::Approx(b)])
+            .chain([Kernel::Exact, Kernel::Unsure]);
+        for kernel in kernels {
+            for k in 0..8 {
+                self.make_kernel(ctx, kernel, k & 1 != 0, k & 2 != 0, k & 4 != 0)?;
+            }
+        }
+        Ok(self.pipelines.len())
     }
 
     /// The pipeline of `kernel` in the alpha round or not, with the
