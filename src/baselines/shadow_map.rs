@@ -281,7 +281,7 @@ impl ShadowMapPass {
             push_constant_bytes: std::mem::size_of::<RasterPush>() as u32,
             bindings: &[],
         })?;
-        let filter = ctx.create_compute_pipeline(&ComputePipelineDesc {
+        let filter = ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
             name: "shadow_filter",
             spirv: shaders::SHADOW_FILTER,
             bindings: &[

@@ -66,7 +66,7 @@ impl CasterPass {
             sb,
         ];
         let make = |name, spirv, bindings: &[DescriptorKind], spec: &[(u32, u32)]| {
-            ctx.create_compute_pipeline(&ComputePipelineDesc {
+            ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
                 name,
                 spirv,
                 bindings,

@@ -48,7 +48,7 @@ impl ClusterPass {
     /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let make = |name, specialization: &[(u32, u32)]| {
-            ctx.create_compute_pipeline(&ComputePipelineDesc {
+            ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
                 name,
                 spirv: shaders::CLUSTERS_BOUNDS,
                 bindings: &[

@@ -35,7 +35,7 @@ impl LightViewPass {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let sb = DescriptorKind::StorageBuffer;
         let make = |name, spirv| {
-            ctx.create_compute_pipeline(&ComputePipelineDesc {
+            ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
                 name,
                 spirv,
                 bindings: &[sb; 2],

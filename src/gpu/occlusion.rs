@@ -31,7 +31,7 @@ impl OcclusionPass {
         let sb = DescriptorKind::StorageBuffer;
         let tb = DescriptorKind::UniformTexelBuffer;
         let make = |alpha: bool| {
-            ctx.create_compute_pipeline(&ComputePipelineDesc {
+            ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
                 name: if alpha {
                     "occlusion_alpha"
                 } else {

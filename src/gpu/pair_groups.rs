@@ -47,7 +47,7 @@ impl PairGroupPass {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let tb = DescriptorKind::UniformTexelBuffer;
         let sb = DescriptorKind::StorageBuffer;
-        let pipeline = ctx.create_compute_pipeline(&ComputePipelineDesc {
+        let pipeline = ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
             name: "pair_groups",
             spirv: shaders::PAIR_GROUPS,
             bindings: &[tb, sb, tb, sb, tb, sb],

@@ -57,7 +57,7 @@ impl PlaneLutPass {
     /// Builds the pipeline.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         Ok(PlaneLutPass {
-            build: ctx.create_compute_pipeline(&ComputePipelineDesc {
+            build: ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
                 name: "plane_lut_build",
                 spirv: shaders::PLANE_LUT_BUILD,
                 bindings: &[

@@ -35,7 +35,7 @@ impl ResolvePass {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let sb = DescriptorKind::StorageBuffer;
         let make = |name, spirv, bindings: &[DescriptorKind]| {
-            ctx.create_compute_pipeline(&ComputePipelineDesc {
+            ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
                 name,
                 spirv,
                 bindings,
@@ -126,7 +126,7 @@ impl ResolvePass {
 /// (specialization constant 6).
 fn soft_pipeline(ctx: &GpuContext, rotated: bool) -> Result<ComputePipeline> {
     let (sb, ub) = (DescriptorKind::StorageBuffer, DescriptorKind::UniformBuffer);
-    ctx.create_compute_pipeline(&ComputePipelineDesc {
+    ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
         name: if rotated {
             "resolve_soft_rotated"
         } else {

@@ -126,14 +126,14 @@ impl ScanPass {
             )
         };
         let storage = DescriptorKind::StorageBuffer;
-        let reduce = ctx.create_compute_pipeline(&ComputePipelineDesc {
+        let reduce = ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
             name: "scan_reduce",
             spirv: reduce_spirv,
             bindings: &[input, input, storage],
             push_constant_bytes: push,
             specialization: &spec,
         })?;
-        let block = ctx.create_compute_pipeline(&ComputePipelineDesc {
+        let block = ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
             name: "scan_block",
             spirv: block_spirv,
             bindings: &[input, input, storage, storage],

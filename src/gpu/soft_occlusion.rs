@@ -293,8 +293,10 @@ impl SoftOcclusionPass {
     /// count, the unsure tests; in the alpha round or not, rotated or not;
     /// exact mode's with the wedge rule and without), as
     /// [`SoftOcclusionPass::prepare`] would: since none is made up front,
-    /// a test calls this to see every pipeline compile and pass validation.
-    /// Returns how many the pass holds.
+    /// a test calls this (on a context with
+    /// [`crate::vulkan::ContextOptions::eager_pipelines`]) to see every
+    /// pipeline compile and pass validation. Returns how many of the
+    /// pass's kernels are made (on other contexts, those dispatched).
     #[doc(hidden)]
     pub fn make_every_kernel(&mut self, ctx: &GpuContext) -> Result<usize> {
         let kernels = (1..=MAX_SOFT_SAMPLES / 128)
@@ -305,7 +307,7 @@ impl SoftOcclusionPass {
                 self.make_kernel(ctx, kernel, k & 1 != 0, k & 2 != 0, k & 4 != 0)?;
             }
         }
-        Ok(self.pipelines.len())
+        Ok(self.pipelines.values().filter(|p| p.is_made()).count())
     }
 
     /// The pipeline of `kernel` in the alpha round or not, with the
@@ -713,7 +715,7 @@ fn occlusion_pipeline(
     let sb = DescriptorKind::StorageBuffer;
     let tb = DescriptorKind::UniformTexelBuffer;
     let ub = DescriptorKind::UniformBuffer;
-    ctx.create_compute_pipeline(&ComputePipelineDesc {
+    ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
         name,
         spirv,
         bindings: &[
@@ -739,7 +741,7 @@ fn unsure_pipeline(
     let sb = DescriptorKind::StorageBuffer;
     let tb = DescriptorKind::UniformTexelBuffer;
     let ub = DescriptorKind::UniformBuffer;
-    ctx.create_compute_pipeline(&ComputePipelineDesc {
+    ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
         name,
         spirv: shaders::SOFT_OCCLUSION_UNSURE,
         bindings: &[tb, tb, tb, sb, tb, tb, tb, tb, tb, ub, sb],

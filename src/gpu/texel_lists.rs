@@ -47,7 +47,7 @@ impl TexelListPass {
         let sb = DescriptorKind::StorageBuffer;
         let ub = DescriptorKind::UniformBuffer;
         let make = |name, spirv, bindings: &[DescriptorKind]| {
-            ctx.create_compute_pipeline(&ComputePipelineDesc {
+            ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
                 name,
                 spirv,
                 bindings,

@@ -110,7 +110,7 @@ impl TileBinPass {
         let tb = DescriptorKind::UniformTexelBuffer;
         let bin_bindings = [sb, sb, sb, tb, sb, tb, tb, tb, sb];
         let make = |name, spirv, bindings: &[DescriptorKind], spec: &[(u32, u32)]| {
-            ctx.create_compute_pipeline(&ComputePipelineDesc {
+            ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
                 name,
                 spirv,
                 bindings,

@@ -322,7 +322,7 @@ impl ViewSamplePass {
             "view_samples_raster_opaque",
             shaders::VIEW_SAMPLES_OPAQUE_FRAG,
         )?;
-        let resolve = ctx.create_compute_pipeline(&ComputePipelineDesc {
+        let resolve = ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
             name: "view_samples_resolve",
             spirv: shaders::VIEW_SAMPLES_RESOLVE,
             bindings: &[

@@ -36,7 +36,7 @@ impl VisibilityOutPass {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let sb = DescriptorKind::StorageBuffer;
         let make = |name, spirv, target: DescriptorKind, soft: bool| {
-            ctx.create_compute_pipeline(&ComputePipelineDesc {
+            ctx.create_compute_pipeline_deferred(&ComputePipelineDesc {
                 name,
                 spirv,
                 bindings: &[sb, target],

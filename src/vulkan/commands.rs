@@ -252,10 +252,11 @@ impl CommandRecorder {
                 push.len()
             )));
         }
+        let raw = pipeline.make()?;
         let set = self.descriptor_set(pipeline, bindings)?;
         let d = self.device.raw();
         unsafe {
-            d.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, pipeline.raw());
+            d.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, raw);
             if let Some(set) = set {
                 d.cmd_bind_descriptor_sets(
                     self.cmd,

@@ -25,6 +25,11 @@ pub struct ContextOptions {
     /// an error: `None` reads env `AFS_GPU_TIMEOUT_S`, else 300 s (lavapipe
     /// runs shaders on the CPU, so real work can take long).
     pub timeout: Option<Duration>,
+    /// Make every pipeline when its pass is built instead of at its first
+    /// dispatch ([`GpuContext::create_compute_pipeline_deferred`]): for a
+    /// check that all of them compile cleanly (a run makes only those it
+    /// dispatches).
+    pub eager_pipelines: bool,
 }
 
 impl ContextOptions {
@@ -75,6 +80,7 @@ struct Pending {
 pub struct GpuContext {
     device: Arc<Device>,
     timeout: Duration,
+    eager_pipelines: bool,
     pending: Mutex<Vec<Pending>>,
     /// Staging buffers for uploads and read-backs, reused across transfers
     /// so that a frame's transfers allocate nothing once warm.
@@ -92,7 +98,8 @@ impl GpuContext {
             let instance = Arc::new(Instance::new(validation)?);
             Device::new(instance, options.device.as_deref())?
         };
-        let ctx = Self::with_device(device, timeout);
+        let mut ctx = Self::with_device(device, timeout);
+        ctx.eager_pipelines = options.eager_pipelines;
         ctx.check_validation()?;
         Ok(ctx)
     }
@@ -101,13 +108,16 @@ impl GpuContext {
     /// only the timeout applies (validation is the caller's instance's).
     pub fn from_external(external: ExternalDevice, options: &ContextOptions) -> Result<Self> {
         let timeout = timeout(options)?;
-        Ok(Self::with_device(Device::from_external(external)?, timeout))
+        let mut ctx = Self::with_device(Device::from_external(external)?, timeout);
+        ctx.eager_pipelines = options.eager_pipelines;
+        Ok(ctx)
     }
 
     fn with_device(device: Arc<Device>, timeout: Duration) -> Self {
         GpuContext {
             device,
             timeout,
+            eager_pipelines: false,
             pending: Mutex::new(Vec::new()),
             upload_staging: Mutex::new(GrowBuffer::new(BufferDesc::upload("upload staging", 0))),
             readback_staging: Mutex::new(GrowBuffer::new(BufferDesc::readback(
@@ -120,6 +130,12 @@ impl GpuContext {
     /// [`GpuContext::new`] with every option from the environment.
     pub fn from_env() -> Result<Self> {
         Self::new(&ContextOptions::default())
+    }
+
+    /// Whether deferred pipelines are made at once
+    /// ([`ContextOptions::eager_pipelines`]).
+    pub fn eager_pipelines(&self) -> bool {
+        self.eager_pipelines
     }
 
     /// The device.

@@ -4,7 +4,7 @@
 //! choices.
 
 use std::ffi::CString;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, OnceLock};
 
 use ash::vk;
 
@@ -170,8 +170,13 @@ impl DescriptorLayout for ComputePipeline {
 }
 
 /// A compute pipeline with its layout and set-0 layout; destroyed on drop.
+/// A deferred one ([`ComputePipeline::deferred`]) has its layouts at once
+/// and the pipeline itself (the driver's compile of its shader) at its
+/// first bind, or at [`ComputePipeline::make`].
 pub struct ComputePipeline {
-    raw: vk::Pipeline,
+    raw: OnceLock<vk::Pipeline>,
+    /// What the pipeline is made from, until it is made.
+    recipe: Mutex<Option<Recipe>>,
     layout: vk::PipelineLayout,
     set_layout: vk::DescriptorSetLayout,
     bindings: Vec<DescriptorKind>,
@@ -180,14 +185,33 @@ pub struct ComputePipeline {
     device: Arc<Device>,
 }
 
+/// A deferred pipeline's shader and specialization constants.
+struct Recipe {
+    spirv: Vec<u32>,
+    specialization: Vec<(u32, u32)>,
+}
+
 impl ComputePipeline {
     /// Creates the pipeline (and checks push constants against the limits).
     pub fn new(device: &Arc<Device>, desc: &ComputePipelineDesc<'_>) -> Result<Self> {
+        let pipeline = Self::deferred(device, desc)?;
+        pipeline.make()?;
+        Ok(pipeline)
+    }
+
+    /// The layouts now (and the push constants checked against the
+    /// limits), the pipeline at its first bind ([`ComputePipeline::make`]):
+    /// a pass can hold variants that most runs never dispatch without
+    /// paying for their compiles.
+    pub fn deferred(device: &Arc<Device>, desc: &ComputePipelineDesc<'_>) -> Result<Self> {
         check_push_constants(device, desc.name, desc.push_constant_bytes)?;
-        let module = ShaderModule::new(device, desc.name, desc.spirv)?;
         // Null handles are fine to destroy, so a half-made pipeline drops cleanly.
         let mut pipeline = ComputePipeline {
-            raw: vk::Pipeline::null(),
+            raw: OnceLock::new(),
+            recipe: Mutex::new(Some(Recipe {
+                spirv: desc.spirv.to_vec(),
+                specialization: desc.specialization.to_vec(),
+            })),
             layout: vk::PipelineLayout::null(),
             set_layout: vk::DescriptorSetLayout::null(),
             bindings: desc.bindings.to_vec(),
@@ -215,11 +239,33 @@ impl ComputePipeline {
         }
         pipeline.layout = unsafe { device.raw().create_pipeline_layout(&layout_info, None) }
             .map_err(|e| err("pipeline layout", e))?;
+        Ok(pipeline)
+    }
 
+    /// The pipeline, made now if it was not yet. Validation messages
+    /// raised by making it stay in the context's sink
+    /// ([`GpuContext::check_validation`]), as a command's do.
+    pub fn make(&self) -> Result<vk::Pipeline> {
+        if let Some(&raw) = self.raw.get() {
+            return Ok(raw);
+        }
+        let mut recipe = self.recipe.lock().unwrap_or_else(|e| e.into_inner());
+        // Another thread may have made it while this one waited.
+        if let Some(&raw) = self.raw.get() {
+            return Ok(raw);
+        }
+        let Some(r) = recipe.as_ref() else {
+            return Err(Error::Vulkan(format!(
+                "pipeline \"{}\" lost its shader before it was made",
+                self.name
+            )));
+        };
+        let device = &self.device;
+        let module = ShaderModule::new(device, &self.name, &r.spirv)?;
         // Every pipeline gets the device's dispatch runs unless its
         // description sets them (shaders that do not declare the constant
         // ignore it).
-        let mut specialization = desc.specialization.to_vec();
+        let mut specialization = r.specialization.clone();
         if !specialization
             .iter()
             .any(|&(id, _)| id == SPREAD_THREADS_ID)
@@ -252,20 +298,30 @@ impl ComputePipeline {
         }
         let info = vk::ComputePipelineCreateInfo::default()
             .stage(stage)
-            .layout(pipeline.layout);
+            .layout(self.layout);
         let raw = unsafe {
             device
                 .raw()
                 .create_compute_pipelines(vk::PipelineCache::null(), &[info], None)
         }
-        .map_err(|(_, e)| err("creation", e))?;
-        pipeline.raw = raw[0];
-        Ok(pipeline)
+        .map_err(|(_, e)| {
+            Error::Vulkan(format!("creation of pipeline \"{}\": {e:?}", self.name))
+        })?[0];
+        // Set under the lock, so no other thread made one too.
+        let _ = self.raw.set(raw);
+        *recipe = None;
+        Ok(raw)
     }
 
-    /// The raw pipeline.
+    /// Whether the pipeline has been made (a deferred one not before its
+    /// first bind).
+    pub fn is_made(&self) -> bool {
+        self.raw.get().is_some()
+    }
+
+    /// The raw pipeline (null until made: see [`ComputePipeline::make`]).
     pub fn raw(&self) -> vk::Pipeline {
-        self.raw
+        self.raw.get().copied().unwrap_or(vk::Pipeline::null())
     }
 
     /// The pipeline layout.
@@ -298,7 +354,7 @@ impl Drop for ComputePipeline {
     fn drop(&mut self) {
         let d = self.device.raw();
         unsafe {
-            d.destroy_pipeline(self.raw, None);
+            d.destroy_pipeline(self.raw(), None);
             d.destroy_pipeline_layout(self.layout, None);
             d.destroy_descriptor_set_layout(self.set_layout, None);
         }
@@ -315,6 +371,19 @@ impl GpuContext {
         let p = ComputePipeline::new(self.device(), desc)?;
         self.check_validation()?;
         Ok(p)
+    }
+
+    /// A compute pipeline made at its first bind
+    /// ([`ComputePipeline::deferred`]), or at once where the context's
+    /// options ask for it ([`super::ContextOptions::eager_pipelines`]).
+    pub fn create_compute_pipeline_deferred(
+        &self,
+        desc: &ComputePipelineDesc<'_>,
+    ) -> Result<ComputePipeline> {
+        if self.eager_pipelines() {
+            return self.create_compute_pipeline(desc);
+        }
+        ComputePipeline::deferred(self.device(), desc)
     }
 }
 
