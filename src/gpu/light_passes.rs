@@ -128,9 +128,9 @@ pub struct LightPasses {
 }
 
 impl LightPasses {
-    /// Builds the pipelines, except soft occlusion's kernels, which come
-    /// with the first light that needs each; no buffer is made before the
-    /// first run.
+    /// Sets up every pass: pipelines are made at their first dispatch
+    /// (soft occlusion's kernels with the first light that needs each), no
+    /// buffer before the first run.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         Ok(LightPasses {
             light_view: LightViewPass::new(ctx)?,

@@ -68,7 +68,7 @@ impl PairGroupPass {
     }
 
     /// Records the bits of the binned pairs (after tile binning's
-    /// scatter): [`SLOTS_PER_LANE`] slots of the tile lists per invocation,
+    /// scatter): `SLOTS_PER_LANE` (16) slots of the tile lists per invocation,
     /// over the `binned` pairs the host read back, or over the list's
     /// capacity in a caller's recording (`None`: the slots past the binned
     /// pairs do nothing).

@@ -75,9 +75,9 @@ pub struct SoftShadowResult {
 
 impl Engine {
     /// Creates the Vulkan context (device from `options`, `AFS_DEVICE`, or
-    /// the default choice) and compiles the passes (soft occlusion's
-    /// kernels, one per mode and block count, when a light first needs
-    /// them).
+    /// the default choice) and sets up the passes; each pipeline is
+    /// compiled at its first dispatch (all at once with
+    /// [`ContextOptions::eager_pipelines`]).
     pub fn new(options: &ContextOptions) -> Result<Self> {
         Self::with_context(GpuContext::new(options)?)
     }
