@@ -657,3 +657,48 @@ fn every_pipeline_is_made_cleanly() {
     drop(pass);
     ctx.check_validation().unwrap();
 }
+
+/// A deferred pipeline is compiled at its first dispatch: one whose shader
+/// is not SPIR-V is made without complaint, and its first dispatch returns
+/// an error that names it (no panic), while the eager creation of the same
+/// description fails at once; a good deferred pipeline is made by its
+/// first dispatch and then runs.
+#[test]
+fn deferred_pipelines_are_made_at_their_first_dispatch() {
+    let ctx = context();
+    {
+        let not_spirv = [0u32; 16];
+        let desc = |spirv| ComputePipelineDesc {
+            name: "not_spirv",
+            spirv,
+            bindings: &[DescriptorKind::StorageBuffer; 3],
+            push_constant_bytes: 16,
+            specialization: &[(0, 64), (1, 1)],
+        };
+        let eager = ctx.create_compute_pipeline(&desc(&not_spirv));
+        assert!(eager.is_err(), "eager creation checks the shader");
+        let bad = ComputePipeline::deferred(ctx.device(), &desc(&not_spirv)).unwrap();
+        assert!(!bad.is_made());
+        let buf = ctx.create_buffer(BufferDesc::storage("b", 64)).unwrap();
+        let three = [
+            Binding::storage(&buf),
+            Binding::storage(&buf),
+            Binding::storage(&buf),
+        ];
+        let mut rec = ctx.begin().unwrap();
+        let e = rec
+            .dispatch(&bad, &three, &[0; 16], [1, 1, 1])
+            .expect_err("a shader that is not SPIR-V cannot be dispatched");
+        assert!(e.to_string().contains("not_spirv"), "{e}");
+        assert!(!bad.is_made());
+        drop(rec);
+
+        let good = ComputePipeline::deferred(ctx.device(), &desc(shaders::SCAN_REDUCE)).unwrap();
+        assert!(!good.is_made());
+        let mut rec = ctx.begin().unwrap();
+        rec.dispatch(&good, &three, &[0; 16], [1, 1, 1]).unwrap();
+        assert!(good.is_made());
+        ctx.submit_and_wait(rec).unwrap();
+    }
+    finish(ctx);
+}
