@@ -7,13 +7,17 @@
 // misses (next to an edge), that point lies on the plane past the edge,
 // possibly inside a neighbouring solid; it is moved to the nearest point of
 // the triangle, so that every view sample lies on its own triangle.
+// An image whose samples pass one storage binding (lavapipe binds 128 MiB:
+// 2048² pixels) is resolved in bands of rows, each dispatch binding its
+// band's ranges of the id and sample buffers.
 
 #include "common.glsl"
 #include "view_ray.glsl"
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
-// Per pixel (y * width + x): triangle id + 1, 0 for nothing seen.
+// Per pixel of the band ((y - first row) * width + x): triangle id + 1, 0
+// for nothing seen.
 layout(set = 0, binding = 0) uniform usamplerBuffer pixel_ids;
 // GpuTriangle as three RGBA32F texels (xyz: vertex).
 layout(set = 0, binding = 1) uniform samplerBuffer triangles;
@@ -23,15 +27,17 @@ layout(set = 0, binding = 2, std430) writeonly buffer Samples {
 
 layout(push_constant) uniform ResolvePush {
     ViewRay ray;
+    uvec4 band; // x: the band's first row; y: its rows
 } pc;
 
 void main() {
     uint x = gl_GlobalInvocationID.x;
-    uint y = gl_GlobalInvocationID.y;
-    if (x >= pc.ray.sizes.x || y >= pc.ray.sizes.y) {
+    uint row = gl_GlobalInvocationID.y;
+    if (x >= pc.ray.sizes.x || row >= pc.band.y) {
         return;
     }
-    uint pixel = y * pc.ray.sizes.x + x;
+    uint y = pc.band.x + row;
+    uint pixel = row * pc.ray.sizes.x + x;
     uint id = texelFetch(pixel_ids, int(pixel)).x;
     GpuViewSample s;
     s.position_triangle = vec4(0.0);

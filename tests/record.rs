@@ -366,6 +366,22 @@ fn an_overflowing_pair_list_is_reported_and_lookup_mode_refused() {
         .expect("look-up mode is refused")
         .to_string();
     assert!(err.contains("exact mode"), "{err}");
+
+    // An image whose view samples pass one binding: a recording has no
+    // batches, so it is refused up front with what to do instead.
+    let range = engine.context().info().limits.max_storage_buffer_range as u64;
+    let mut large = desc.clone();
+    large.camera.width = 2048;
+    large.camera.height = (range / (32 * 2048)) as u32 + 8;
+    let err = engine
+        .record_frame(&large, &RecordOptions::default())
+        .err()
+        .expect("an image past one binding is refused")
+        .to_string();
+    assert!(
+        err.contains("maxStorageBufferRange") && err.contains("Engine::render"),
+        "{err}"
+    );
     engine.context().check_validation().unwrap();
 }
 

@@ -343,3 +343,44 @@ fn cull_leaves_the_view_samples_unchanged() {
     assert!(culled_somewhere, "the cull left nothing out");
     ctx.check_validation().unwrap();
 }
+
+#[test]
+fn bands_leave_the_view_samples_unchanged() {
+    // An image whose samples pass one storage binding is resolved in bands
+    // of rows (multiples of 64, each dispatch binding its rows' ranges);
+    // forced bands give every pixel the sample of a single dispatch,
+    // including a last band of 8 rows and a width that is no multiple of
+    // the workgroup's 8.
+    let ctx = GpuContext::new(&ContextOptions::validated()).unwrap();
+    let mut desc = file::load("builtin:demo").unwrap();
+    desc.camera.width = 45;
+    desc.camera.height = 200;
+    let camera = desc.camera;
+    let tris = gpu_triangles(&desc.scene.triangles(), camera.eye);
+    let n = camera.width as usize * camera.height as usize;
+    let mut pass = ViewSamplePass::new(&ctx).unwrap();
+    let whole = {
+        let (buf, _) = pass.render(&ctx, &camera, &tris, None).unwrap();
+        read_view_samples(&ctx, buf, n).unwrap()
+    };
+    assert!(whole.iter().any(|s| s.flags & VIEW_SAMPLE_VALID != 0));
+    // 64 rows, and 100 rounded down to 64: bands of 64, 64, 64, 8.
+    for limit in [64, 100, 128] {
+        pass.set_band_limit(Some(limit));
+        let (buf, _) = pass.render(&ctx, &camera, &tris, None).unwrap();
+        let banded = read_view_samples(&ctx, buf, n).unwrap();
+        for (i, (a, b)) in whole.iter().zip(&banded).enumerate() {
+            assert_eq!(a, b, "bands of {limit} rows: pixel {i} differs");
+        }
+    }
+    // Fewer rows than one band's multiple: an error, not a panic or an
+    // empty image.
+    pass.set_band_limit(Some(63));
+    let err = pass.render(&ctx, &camera, &tris, None).err();
+    assert!(
+        err.as_ref()
+            .is_some_and(|e| e.to_string().contains("multiples of 64 rows")),
+        "{err:?}"
+    );
+    ctx.check_validation().unwrap();
+}

@@ -236,13 +236,25 @@ fn whole_inputs<'a>(
     (triangles, nt): (&'a Buffer, u32),
 ) -> LightInputs<'a> {
     LightInputs {
-        samples: samples.whole(),
+        samples: prefix(samples, 32 * n as u64),
         n,
-        triangles: triangles.whole(),
+        triangles: prefix(triangles, 48 * nt as u64),
         nt,
         triangle_base: 0,
         alpha: alpha.inputs(),
         alpha_casters: alpha.present(),
+    }
+}
+
+/// The first `bytes` of `buffer` (at least 16, at most all of it): what
+/// this frame's passes bind. A buffer kept from a larger frame (one whose
+/// view samples ran in batches) may pass one binding's range as a whole.
+fn prefix(buffer: &Buffer, bytes: u64) -> BufferSlice<'_> {
+    let size = buffer.size();
+    BufferSlice {
+        buffer,
+        offset: 0,
+        size: bytes.max(16).min(size),
     }
 }
 

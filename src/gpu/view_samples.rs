@@ -39,6 +39,11 @@
 //!    pixel-centre ray (same formula as [`Camera::ray_direction`], in f32) is
 //!    intersected with that triangle's plane — exact rather than an
 //!    interpolated depth — and the sample written to a storage buffer.
+//!    An image whose samples pass one storage binding
+//!    (`maxStorageBufferRange`: lavapipe binds 128 MiB, 2048² samples) is
+//!    resolved in bands of rows (`band_rows`), each dispatch binding its
+//!    band's ranges of the id and sample buffers; the light passes then
+//!    take the samples in batches (`gpu::batches`).
 //!
 //! The near plane is `1e-6 ×` the distance of the farthest vertex; there is
 //! no far plane.
@@ -57,7 +62,7 @@ use crate::scene::Camera;
 use crate::vulkan::Draw;
 use crate::vulkan::{
     vertex_input_barrier, vk, Attachment, Barrier, Binding, Buffer, BufferDesc, CommandRecorder,
-    ComputePipeline, ComputePipelineDesc, DescriptorKind, Framebuffer, GpuContext,
+    ComputePipeline, ComputePipelineDesc, DescriptorKind, DeviceLimits, Framebuffer, GpuContext,
     GraphicsPipeline, GraphicsPipelineDesc, GrowBuffer, Profiler, VertexAttribute,
 };
 use crate::{Error, Result};
@@ -76,8 +81,7 @@ struct RasterPush {
     ray: ViewRay,
 }
 
-/// `ViewRay` (`view_ray.glsl`): the camera as the pixel rays need it; the
-/// push constants of `view_samples_resolve.comp`.
+/// `ViewRay` (`view_ray.glsl`): the camera as the pixel rays need it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 struct ViewRay {
@@ -89,6 +93,50 @@ struct ViewRay {
     forward: [f32; 4],
     /// width, height, triangles, 1 when some triangle is alpha-tested.
     sizes: [u32; 4],
+}
+
+/// Push constants of `view_samples_resolve.comp`: the pixel rays and the
+/// band of rows one dispatch resolves.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct ResolvePush {
+    ray: ViewRay,
+    /// The band's first row, its rows, 0, 0.
+    band: [u32; 4],
+}
+
+/// Bands of rows start at multiples of this: their byte offsets into the
+/// id (4 B per pixel) and sample (32 B) buffers are then multiples of 256,
+/// the largest binding-offset alignment Vulkan allows.
+const BAND_ROW_MULTIPLE: u32 = 64;
+
+/// The rows of one resolve dispatch for a `width × height` image: all of
+/// them when one binding holds the image's samples and ids, else as many
+/// as it holds, a multiple of [`BAND_ROW_MULTIPLE`]; at most `limit` (a
+/// test's forced bands, rounded down to that multiple as well).
+fn band_rows(limits: &DeviceLimits, [width, height]: [u32; 2], limit: Option<u32>) -> Result<u32> {
+    let sample_bytes = std::mem::size_of::<GpuViewSample>() as u64;
+    let width = width.max(1) as u64;
+    let fit = (limits.max_storage_buffer_range as u64 / (width * sample_bytes))
+        .min(limits.max_texel_buffer_elements as u64 / width)
+        .min(limit.map_or(u64::MAX, |l| l as u64));
+    if fit >= height as u64 {
+        return Ok(height);
+    }
+    let rows = fit / BAND_ROW_MULTIPLE as u64 * BAND_ROW_MULTIPLE as u64;
+    if rows == 0 {
+        return Err(Error::InvalidInput(match limit {
+            Some(l) if (l as u64) < BAND_ROW_MULTIPLE as u64 => {
+                format!("a band limit of {l} rows: bands are multiples of {BAND_ROW_MULTIPLE} rows")
+            }
+            _ => format!(
+                "{BAND_ROW_MULTIPLE} rows of {width} view samples pass the device's \
+                 maxStorageBufferRange ({} bytes) or maxTexelBufferElements ({})",
+                limits.max_storage_buffer_range, limits.max_texel_buffer_elements
+            ),
+        }));
+    }
+    Ok(rows as u32)
 }
 
 /// Render targets of one image size. Field order: the framebuffer is
@@ -130,6 +178,10 @@ pub struct ViewSamplePass {
     profiler: Profiler,
     /// The resolve's push constants of [`ViewSamplePass::prepare_for_caller`].
     caller_push: Option<ViewRay>,
+    /// The resolve's rows per dispatch for this frame ([`band_rows`]).
+    band_rows: u32,
+    /// At most this many rows per dispatch (tests force bands with it).
+    band_limit: Option<u32>,
 }
 
 const ID_FORMAT: vk::Format = vk::Format::R32_UINT;
@@ -330,7 +382,7 @@ impl ViewSamplePass {
                 DescriptorKind::UniformTexelBuffer,
                 DescriptorKind::StorageBuffer,
             ],
-            push_constant_bytes: std::mem::size_of::<ViewRay>() as u32,
+            push_constant_bytes: std::mem::size_of::<ResolvePush>() as u32,
             specialization: &[],
         })?;
         let mut triangles = BufferDesc::storage("view_triangles", 0);
@@ -353,6 +405,8 @@ impl ViewSamplePass {
             none: GrowBuffer::storage("view_alpha_none"),
             profiler: Profiler::new(ctx, 1)?,
             caller_push: None,
+            band_rows: 0,
+            band_limit: None,
         })
     }
 
@@ -395,6 +449,7 @@ impl ViewSamplePass {
         let (width, height) = (camera.width, camera.height);
         let pixels = width as u64 * height as u64;
         let out_bytes = pixels * std::mem::size_of::<GpuViewSample>() as u64;
+        self.band_rows = band_rows(ctx.device().limits(), [width, height], self.band_limit)?;
         self.ensure_targets(ctx, [width, height])?;
         let tri_buf = self.triangles.get(ctx, 48 * nt.max(1) as u64)?;
         if nt > 0 {
@@ -493,6 +548,11 @@ impl ViewSamplePass {
     ) -> Result<()> {
         let (_, resolve_push, nt) = pushes(ctx, camera, triangles, any_alpha)?;
         let pixels = camera.width as u64 * camera.height as u64;
+        self.band_rows = band_rows(
+            ctx.device().limits(),
+            [camera.width, camera.height],
+            self.band_limit,
+        )?;
         let tri_buf = self.triangles.get(ctx, 48 * nt.max(1) as u64)?;
         if nt > 0 {
             ctx.upload(tri_buf, 0, triangles)?;
@@ -553,16 +613,26 @@ impl ViewSamplePass {
             tri_buf.slice(0, 48 * nt.max(1) as u64)?,
             vk::Format::R32G32B32A32_SFLOAT,
         );
-        rec.dispatch(
-            &self.resolve,
-            &[
-                Binding::uniform_texel(self.ids.slice(), vk::Format::R32_UINT),
-                tri_binding,
-                Binding::storage(&self.samples),
-            ],
-            bytemuck::bytes_of(push),
-            [width.div_ceil(8), height.div_ceil(8), 1],
-        )?;
+        let (ids, samples) = (self.ids.buffer(), self.samples.buffer());
+        let sample_bytes = std::mem::size_of::<GpuViewSample>() as u64;
+        for first in (0..height).step_by(self.band_rows.max(1) as usize) {
+            let rows = self.band_rows.min(height - first);
+            let (start, len) = (first as u64 * width as u64, rows as u64 * width as u64);
+            let band = ResolvePush {
+                ray: *push,
+                band: [first, rows, 0, 0],
+            };
+            rec.dispatch(
+                &self.resolve,
+                &[
+                    Binding::uniform_texel(ids.slice(4 * start, 4 * len)?, vk::Format::R32_UINT),
+                    tri_binding,
+                    Binding::storage(samples.slice(sample_bytes * start, sample_bytes * len)?),
+                ],
+                bytemuck::bytes_of(&band),
+                [width.div_ceil(8), rows.div_ceil(8), 1],
+            )?;
+        }
         rec.barrier(Barrier::ComputeToCompute);
         Ok(())
     }
@@ -583,6 +653,13 @@ impl ViewSamplePass {
     /// (module docs).
     pub fn set_cull(&mut self, on: bool) {
         self.cull = on;
+    }
+
+    /// Resolves at most `rows` rows per dispatch (rounded down to a
+    /// multiple of 64; `None`: as many as one binding holds). The samples
+    /// are the same; tests force bands with it.
+    pub fn set_band_limit(&mut self, rows: Option<u32>) {
+        self.band_limit = rows;
     }
 
     /// How many triangles the last [`ViewSamplePass::render`] drew.
@@ -619,11 +696,13 @@ fn pushes(
     let pixels = width as u64 * height as u64;
     let out_bytes = pixels * std::mem::size_of::<GpuViewSample>() as u64;
     let limits = ctx.device().limits().clone();
-    if out_bytes > limits.max_storage_buffer_range as u64 {
+    // Past one binding the resolve runs in bands and the light passes in
+    // batches; past 4 GiB (11585² pixels) a frame's samples are more than
+    // its passes index.
+    if out_bytes > u32::MAX as u64 {
         return Err(Error::InvalidInput(format!(
-            "{width}x{height} view samples need {out_bytes} bytes, more than the device's \
-             maxStorageBufferRange of {} bytes",
-            limits.max_storage_buffer_range
+            "{width}x{height} view samples need {out_bytes} bytes, more than the 4 GiB \
+             of view samples one frame holds"
         )));
     }
     let nt = u32::try_from(triangles.len())

@@ -298,6 +298,15 @@ impl Engine {
         self.shadows.set_batch_limit(limit);
     }
 
+    /// Limits the rows the view samples' resolve writes per dispatch
+    /// (rounded down to a multiple of 64): an image is resolved in bands
+    /// of rows, as it is anyway when its view samples would pass one
+    /// storage binding (lavapipe binds 128 MiB: 2048² samples). For tests
+    /// of that path; `None` lifts it.
+    pub fn set_view_sample_band_limit(&mut self, rows: Option<u32>) {
+        self.view.set_band_limit(rows);
+    }
+
     /// Limits the triangles per shadow run: more are split into batches
     /// whose results are combined, as they are anyway when the caster
     /// buffers would pass the device's binding limits (scenes of millions

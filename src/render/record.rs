@@ -157,7 +157,9 @@ impl Engine {
     /// recordings then allocate and submit nothing.
     ///
     /// Errors: an invalid description, a light with extent in a look-up
-    /// mode (recordings run exact mode), or a zero `binned_pairs`.
+    /// mode (recordings run exact mode), a zero `binned_pairs`, or an
+    /// image whose view samples pass one storage binding (a recording has
+    /// no batches; lavapipe binds 2048² samples).
     pub fn record_frame(
         &mut self,
         desc: &SceneDescription,
@@ -171,6 +173,18 @@ impl Engine {
             return Err(Error::InvalidInput(format!(
                 "RecordOptions::binned_pairs is {}; this device binds 1 to {most}",
                 options.binned_pairs
+            )));
+        }
+        // A recording runs each light's passes once over every view
+        // sample: no batches (Engine::render runs an image this large).
+        let samples_bytes = desc.camera.width as u64 * desc.camera.height as u64 * 32;
+        if samples_bytes > limits.max_storage_buffer_range as u64 {
+            return Err(Error::InvalidInput(format!(
+                "record_frame: {}x{} view samples need {samples_bytes} bytes, more than one \
+                 binding of this device holds (maxStorageBufferRange {} bytes); a recorded \
+                 frame runs its passes without batches (Engine::render takes this image in \
+                 batches)",
+                desc.camera.width, desc.camera.height, limits.max_storage_buffer_range
             )));
         }
         self.shadows.set_clusters(desc.shadows.clusters);
