@@ -885,10 +885,10 @@ fn rendered_frames(specs: &[String], size: u32) {
 /// pixels wide and 8 rows past what one binding holds: the rows past it
 /// are seen as the oracle sees them, and every pixel's shadow agrees
 /// with the oracle's on the frame's own view samples, within the bands.
-/// (The columns: the demo at this size has pixels outside the bands with
-/// or without bands, where a shadow segment passes within an f32 ulp of a
-/// neighbouring triangle's edge next to its sample; docs/status.md, stop
-/// 63.)
+/// (The columns: the demo near this size has a pixel or two outside the
+/// conformance bands with or without bands of rows, where a shadow segment
+/// passes within a few f32 ulps of a neighbouring triangle's edge next to
+/// its sample; docs/status.md, stop 63.)
 #[test]
 fn an_image_past_one_binding_conforms() {
     let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
