@@ -483,6 +483,46 @@ fn triangle_batches_equal_one_run() {
     engine.context().check_validation().unwrap();
 }
 
+/// A whole frame with its view samples resolved in bands of rows and its
+/// light run in batches of view samples (forced here, as an image past one
+/// storage binding takes them), with the progress bar on: the same frame
+/// as one dispatch and one run, bit for bit, soft and hard.
+#[test]
+fn bands_and_batches_equal_one_frame() {
+    use alias_free_shadows::render::FrameOptions;
+    let mut engine = Engine::new(&ContextOptions::validated()).unwrap();
+    let mut desc = file::load("builtin:demo").unwrap();
+    desc.camera.width = 50;
+    desc.camera.height = 150;
+    let point = Light {
+        shape: LightShape::Point {
+            position: desc.lights[0].center().unwrap(),
+        },
+        ..desc.lights[0].clone()
+    };
+    for light in [desc.lights[0].clone(), point] {
+        desc.lights = vec![light];
+        let one = engine.render(&desc, FrameOptions::default()).unwrap();
+        engine.set_view_sample_band_limit(Some(64));
+        engine.set_view_sample_batch_limit(Some(1000));
+        let banded = engine
+            .render(&desc, FrameOptions { progress: true })
+            .unwrap();
+        engine.set_view_sample_band_limit(None);
+        engine.set_view_sample_batch_limit(None);
+        assert!(one.view.samples.iter().any(|s| s.is_some()));
+        assert_eq!(one.view.samples, banded.view.samples);
+        assert_eq!(one.dump.visibility, banded.dump.visibility);
+        assert_eq!(one.image, banded.image);
+        let shadowed = one.dump.visibility[0]
+            .iter()
+            .filter(|v| v[0] < 1.0 && v[3] > 0.0)
+            .count();
+        assert!(shadowed > 0, "the light casts some shadow");
+    }
+    engine.context().check_validation().unwrap();
+}
+
 /// A unit-less box from `lo` to `hi` as a glTF exporter writes it: four
 /// vertices per face (per-face normals and UVs), outward counter-clockwise
 /// triangles; the last `faces` of its six (fewer: a box open at the top).

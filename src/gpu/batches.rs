@@ -17,6 +17,10 @@ use crate::gpu::soft_light::{SampleRotation, SoftLight};
 use crate::vulkan::{Barrier, BufferSlice, GpuContext, GrowBuffer};
 use crate::{Error, Result};
 
+/// Told (batch, batches), from 0, before each batch of view samples when a
+/// run takes more than one (a frame's progress bar).
+pub type BatchProgress = std::sync::Arc<dyn Fn(usize, usize) + Send + Sync>;
+
 /// The batch limits and the copies batches run on (kept across frames).
 pub struct Batches {
     /// At most this many view samples per run (None: as many as the
@@ -25,6 +29,8 @@ pub struct Batches {
     /// At most this many triangles per run (None: as many as the device's
     /// binding limits allow for the caster pairs and planes).
     pub triangle_limit: Option<usize>,
+    /// Told before each batch of view samples (None: nobody).
+    pub progress: Option<BatchProgress>,
     samples_copy: GrowBuffer,
     triangles_copy: GrowBuffer,
 }
@@ -47,6 +53,7 @@ impl Batches {
         Batches {
             view_sample_limit: None,
             triangle_limit: None,
+            progress: None,
             samples_copy: GrowBuffer::storage("view_sample_batch"),
             triangles_copy: GrowBuffer::storage("triangle_batch"),
         }
@@ -71,6 +78,9 @@ impl Batches {
         }
         let mut out: Option<ShadowOutput> = None;
         for start in (0..n).step_by(batch) {
+            if let Some(progress) = &self.progress {
+                progress(start / batch, n.div_ceil(batch));
+            }
             let len = batch.min(n - start);
             let samples = copy_range(ctx, inputs.samples, &mut self.samples_copy, 32, start, len)?;
             let part = LightInputs {

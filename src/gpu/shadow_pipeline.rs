@@ -209,6 +209,12 @@ impl ShadowPipeline {
         self.passes.read_masks = on;
     }
 
+    /// Who is told of each batch of view samples when a run takes several
+    /// (a frame's progress bar); `None`: nobody.
+    pub fn set_batch_progress(&mut self, progress: Option<crate::gpu::batches::BatchProgress>) {
+        self.batches.progress = progress;
+    }
+
     /// Limits the view samples per run (tests: forces the batched path that
     /// large runs take); `None` lifts the limit.
     pub fn set_batch_limit(&mut self, limit: Option<usize>) {

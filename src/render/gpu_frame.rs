@@ -9,6 +9,7 @@ use rayon::prelude::*;
 
 use super::dump_assembly::make_dump;
 use super::inputs::{frame_light, gpu_triangles};
+use super::progress::FrameProgress;
 use super::{Engine, Frame, FrameOptions};
 use crate::gpu::gpu_inputs;
 use crate::light::mask_channel_visibility;
@@ -53,17 +54,34 @@ impl Engine {
     /// extent), then shading and the dump. Every buffer lives across
     /// frames: a second frame of the same size allocates nothing
     /// (`allocations` in the statistics).
-    pub fn render(&mut self, desc: &SceneDescription, _options: FrameOptions) -> Result<Frame> {
+    pub fn render(&mut self, desc: &SceneDescription, options: FrameOptions) -> Result<Frame> {
         desc.validate()?;
         let t0 = Instant::now();
         let before = self.ctx.allocations();
+        let progress = FrameProgress::new(options.progress, desc.lights.len());
         let fv = self.frame_view(desc)?;
         // 2-5. Per light: lists, casters, rasterization, occlusion, resolve.
         let mut lights = Vec::new();
         for k in 0..desc.lights.len() {
-            lights.push(self.light(desc, k, fv.n, fv.triangles)?);
+            lights.push(self.light_shown(desc, k, (fv.n, fv.triangles), &progress)?);
         }
+        progress.shading();
         Ok(self.finish_frame(desc, fv, &lights, (t0, before), None))
+    }
+
+    /// [`Engine::light`] with `progress` told of the light and its batches.
+    pub(super) fn light_shown(
+        &mut self,
+        desc: &SceneDescription,
+        k: usize,
+        (n, nt): (usize, usize),
+        progress: &FrameProgress,
+    ) -> Result<LightResult> {
+        progress.light(k);
+        self.shadows.set_batch_progress(progress.batches(k));
+        let result = self.light(desc, k, n, nt);
+        self.shadows.set_batch_progress(None);
+        result
     }
 
     /// A frame's step 1: its triangles (camera-relative, alpha tests

@@ -26,6 +26,7 @@ pub mod dump_assembly;
 pub mod engine;
 pub mod gpu_frame;
 pub mod inputs;
+mod progress;
 pub mod record;
 pub mod reference;
 pub mod reuse;
@@ -66,6 +67,8 @@ pub struct Frame {
 /// Options for a frame.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct FrameOptions {
-    /// Show progress bars on standard error.
+    /// Show progress bars on standard error (when it is a terminal): the
+    /// GPU frame's steps (view samples, each light and its batches,
+    /// shading), the reference's rows.
     pub progress: bool,
 }

@@ -14,6 +14,7 @@
 use std::time::Instant;
 
 use super::gpu_frame::{FrameView, LightResult};
+use super::progress::FrameProgress;
 use super::{Engine, Frame, FrameOptions};
 use crate::scene::file::SceneDescription;
 use crate::stats::Reused;
@@ -82,7 +83,7 @@ impl Engine {
         desc: &SceneDescription,
         generations: &Generations,
         reuse: &mut FrameReuse,
-        _options: FrameOptions,
+        options: FrameOptions,
     ) -> Result<Frame> {
         if generations.lights.len() != desc.lights.len() {
             return Err(Error::InvalidInput(format!(
@@ -120,6 +121,7 @@ impl Engine {
                 && a.settings == b.settings
                 && k.engine_frame == self.frame_id
         });
+        let progress = FrameProgress::new(options.progress, desc.lights.len());
         let fv = match same_view {
             Some(k) => FrameView {
                 inputs_ms: 0.0,
@@ -137,9 +139,10 @@ impl Engine {
             reused_lights.push(earlier.is_some());
             lights.push(match earlier {
                 Some(l) => l.clone(),
-                None => self.light(desc, k, fv.n, fv.triangles)?,
+                None => self.light_shown(desc, k, (fv.n, fv.triangles), &progress)?,
             });
         }
+        progress.shading();
         let reused = Reused {
             frame: false,
             view_samples: same_view.is_some(),
