@@ -105,6 +105,10 @@ struct ResolvePush {
     band: [u32; 4],
 }
 
+// The shader's block: a ViewRay (64 bytes) and a uvec4, within the 128
+// bytes of push constants every device has.
+const _: () = assert!(std::mem::size_of::<ResolvePush>() == 80);
+
 /// Bands of rows start at multiples of this: their byte offsets into the
 /// id (4 B per pixel) and sample (32 B) buffers are then multiples of 256,
 /// the largest binding-offset alignment Vulkan allows.
