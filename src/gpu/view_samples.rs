@@ -182,8 +182,6 @@ pub struct ViewSamplePass {
     profiler: Profiler,
     /// The resolve's push constants of [`ViewSamplePass::prepare_for_caller`].
     caller_push: Option<ViewRay>,
-    /// The resolve's rows per dispatch for this frame ([`band_rows`]).
-    band_rows: u32,
     /// At most this many rows per dispatch (tests force bands with it).
     band_limit: Option<u32>,
 }
@@ -409,7 +407,6 @@ impl ViewSamplePass {
             none: GrowBuffer::storage("view_alpha_none"),
             profiler: Profiler::new(ctx, 1)?,
             caller_push: None,
-            band_rows: 0,
             band_limit: None,
         })
     }
@@ -453,7 +450,6 @@ impl ViewSamplePass {
         let (width, height) = (camera.width, camera.height);
         let pixels = width as u64 * height as u64;
         let out_bytes = pixels * std::mem::size_of::<GpuViewSample>() as u64;
-        self.band_rows = band_rows(ctx.device().limits(), [width, height], self.band_limit)?;
         self.ensure_targets(ctx, [width, height])?;
         let tri_buf = self.triangles.get(ctx, 48 * nt.max(1) as u64)?;
         if nt > 0 {
@@ -552,11 +548,6 @@ impl ViewSamplePass {
     ) -> Result<()> {
         let (_, resolve_push, nt) = pushes(ctx, camera, triangles, any_alpha)?;
         let pixels = camera.width as u64 * camera.height as u64;
-        self.band_rows = band_rows(
-            ctx.device().limits(),
-            [camera.width, camera.height],
-            self.band_limit,
-        )?;
         let tri_buf = self.triangles.get(ctx, 48 * nt.max(1) as u64)?;
         if nt > 0 {
             ctx.upload(tri_buf, 0, triangles)?;
@@ -619,10 +610,11 @@ impl ViewSamplePass {
         );
         let (ids, samples) = (self.ids.buffer(), self.samples.buffer());
         let sample_bytes = std::mem::size_of::<GpuViewSample>() as u64;
-        for first in (0..height).step_by(self.band_rows.max(1) as usize) {
-            let rows = self.band_rows.min(height - first);
+        let band = band_rows(rec.device().limits(), [width, height], self.band_limit)?;
+        for first in (0..height).step_by(band.max(1) as usize) {
+            let rows = band.min(height - first);
             let (start, len) = (first as u64 * width as u64, rows as u64 * width as u64);
-            let band = ResolvePush {
+            let resolve_push = ResolvePush {
                 ray: *push,
                 band: [first, rows, 0, 0],
             };
@@ -633,7 +625,7 @@ impl ViewSamplePass {
                     tri_binding,
                     Binding::storage(samples.slice(sample_bytes * start, sample_bytes * len)?),
                 ],
-                bytemuck::bytes_of(&band),
+                bytemuck::bytes_of(&resolve_push),
                 [width.div_ceil(8), rows.div_ceil(8), 1],
             )?;
         }

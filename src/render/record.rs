@@ -177,7 +177,9 @@ impl Engine {
         }
         // A recording runs each light's passes once over every view
         // sample: no batches (Engine::render runs an image this large).
-        let samples_bytes = desc.camera.width as u64 * desc.camera.height as u64 * 32;
+        let samples_bytes = desc.camera.width as u64
+            * desc.camera.height as u64
+            * std::mem::size_of::<crate::gpu::shared::GpuViewSample>() as u64;
         if samples_bytes > limits.max_storage_buffer_range as u64 {
             return Err(Error::InvalidInput(format!(
                 "record_frame: {}x{} view samples need {samples_bytes} bytes, more than one \
