@@ -227,12 +227,39 @@ impl ShadingCache {
     }
 }
 
-/// The unit direction from `p` towards `light` (its centre; against the
-/// direction of a directional light).
-fn to_light(light: &Light, p: DVec3) -> DVec3 {
-    match &light.shape {
-        LightShape::Directional { direction } => -direction.normalize_or_zero(),
-        _ => (light.center().unwrap_or(p) - p).normalize_or_zero(),
+/// What the unit direction from a point towards a light is taken from:
+/// found once per light and frame, not per pixel (an explicit light's
+/// centre is the mean of its samples: per pixel, that sum cost a
+/// 1024-sample light's 512² frame 110 ms of shading).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum LightAim {
+    /// Towards the light's centre.
+    Centre(DVec3),
+    /// Against a directional light's direction (already unit, or zero).
+    Along(DVec3),
+    /// A light without a centre (an explicit light with no samples).
+    Nowhere,
+}
+
+impl LightAim {
+    fn of(light: &Light) -> Self {
+        match &light.shape {
+            LightShape::Directional { direction } => {
+                LightAim::Along(-direction.normalize_or_zero())
+            }
+            _ => light.center().map_or(LightAim::Nowhere, LightAim::Centre),
+        }
+    }
+
+    /// The unit direction from `p` towards the light (its centre; against
+    /// the direction of a directional light); zero for a light without a
+    /// centre.
+    fn from(self, p: DVec3) -> DVec3 {
+        match self {
+            LightAim::Centre(c) => (c - p).normalize_or_zero(),
+            LightAim::Along(d) => d,
+            LightAim::Nowhere => DVec3::ZERO,
+        }
     }
 }
 
@@ -304,12 +331,13 @@ pub fn shade_coloured(
     // Where each shown triangle's material is (a search per triangle, not per pixel).
     let located: Vec<Option<(usize, usize)>> =
         shown.par_iter().map(|&t| surfaces.ids.locate(t)).collect();
-    let bends: Vec<Vec<[[f64; 2]; 3]>> = lights
+    let aims: Vec<LightAim> = lights.iter().map(LightAim::of).collect();
+    let bends: Vec<Vec<[[f64; 2]; 3]>> = aims
         .iter()
-        .map(|light| {
+        .map(|&aim| {
             shown
                 .par_iter()
-                .map(|&t| normals.corner_bends(t, |p| to_light(light, p)))
+                .map(|&t| normals.corner_bends(t, |p| aim.from(p)))
                 .collect()
         })
         .collect();
@@ -350,9 +378,9 @@ pub fn shade_coloured(
                             }
                             let lambert = if on_mesh {
                                 let b = &bends[k][slot[t] as usize];
-                                normals.lambert_bent(t, bary, s.normal, b, |p| to_light(light, p))
+                                normals.lambert_bent(t, bary, s.normal, b, |p| aims[k].from(p))
                             } else {
-                                s.normal.dot(to_light(light, s.position)).max(0.0)
+                                s.normal.dot(aims[k].from(s.position)).max(0.0)
                             };
                             let rgb = visibility_rgb
                                 .get(k)
@@ -389,6 +417,62 @@ pub fn faces_light(position: DVec3, normal: DVec3, samples: &crate::light::Light
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A light's aim, found once, gives each point the direction of the
+    /// definition: towards the centre (an explicit light's mean sample),
+    /// against a directional light, zero without a centre.
+    #[test]
+    fn light_aim_is_the_direction_to_the_light() {
+        let light = |shape| Light {
+            shape,
+            samples: 1,
+            distribution: crate::light::Distribution::Uniform,
+            seed: 0,
+            color: [1.0; 3],
+            intensity: 1.0,
+            emission: None,
+            per_pixel_rotation: false,
+        };
+        let positions = vec![
+            DVec3::new(1.0, 4.0, -2.0),
+            DVec3::new(1.5, 4.5, -2.0),
+            DVec3::new(0.25, 3.0, -1.0),
+        ];
+        let mean = positions.iter().sum::<DVec3>() / 3.0;
+        let cases = [
+            (
+                LightShape::Point {
+                    position: DVec3::new(0.0, 5.0, 0.0),
+                },
+                Some(DVec3::new(0.0, 5.0, 0.0)),
+            ),
+            (LightShape::Explicit { positions }, Some(mean)),
+        ];
+        let points = [
+            DVec3::ZERO,
+            DVec3::new(3.0, -1.0, 0.5),
+            DVec3::new(-1e3, 2e3, 7.0),
+        ];
+        for (shape, centre) in cases {
+            let aim = LightAim::of(&light(shape));
+            for p in points {
+                let want = (centre.unwrap() - p).normalize_or_zero();
+                assert_eq!(aim.from(p), want, "{aim:?} at {p}");
+                assert!((aim.from(p).length() - 1.0).abs() < 1e-12);
+            }
+        }
+        let direction = DVec3::new(1.0, -2.0, 0.5);
+        let aim = LightAim::of(&light(LightShape::Directional { direction }));
+        for p in points {
+            assert_eq!(aim.from(p), -direction.normalize());
+        }
+        let aim = LightAim::of(&light(LightShape::Explicit {
+            positions: Vec::new(),
+        }));
+        for p in points {
+            assert_eq!(aim.from(p), DVec3::ZERO);
+        }
+    }
 
     #[test]
     fn bilinear_reads_far_coordinates_without_overflow() {
