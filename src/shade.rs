@@ -254,7 +254,7 @@ impl LightAim {
     /// The unit direction from `p` towards the light (its centre; against
     /// the direction of a directional light); zero for a light without a
     /// centre.
-    fn from(self, p: DVec3) -> DVec3 {
+    fn direction_from(self, p: DVec3) -> DVec3 {
         match self {
             LightAim::Centre(c) => (c - p).normalize_or_zero(),
             LightAim::Along(d) => d,
@@ -337,7 +337,7 @@ pub fn shade_coloured(
         .map(|&aim| {
             shown
                 .par_iter()
-                .map(|&t| normals.corner_bends(t, |p| aim.from(p)))
+                .map(|&t| normals.corner_bends(t, |p| aim.direction_from(p)))
                 .collect()
         })
         .collect();
@@ -378,9 +378,11 @@ pub fn shade_coloured(
                             }
                             let lambert = if on_mesh {
                                 let b = &bends[k][slot[t] as usize];
-                                normals.lambert_bent(t, bary, s.normal, b, |p| aims[k].from(p))
+                                normals.lambert_bent(t, bary, s.normal, b, |p| {
+                                    aims[k].direction_from(p)
+                                })
                             } else {
-                                s.normal.dot(aims[k].from(s.position)).max(0.0)
+                                s.normal.dot(aims[k].direction_from(s.position)).max(0.0)
                             };
                             let rgb = visibility_rgb
                                 .get(k)
@@ -444,9 +446,9 @@ mod tests {
                 LightShape::Point {
                     position: DVec3::new(0.0, 5.0, 0.0),
                 },
-                Some(DVec3::new(0.0, 5.0, 0.0)),
+                DVec3::new(0.0, 5.0, 0.0),
             ),
-            (LightShape::Explicit { positions }, Some(mean)),
+            (LightShape::Explicit { positions }, mean),
         ];
         let points = [
             DVec3::ZERO,
@@ -456,21 +458,21 @@ mod tests {
         for (shape, centre) in cases {
             let aim = LightAim::of(&light(shape));
             for p in points {
-                let want = (centre.unwrap() - p).normalize_or_zero();
-                assert_eq!(aim.from(p), want, "{aim:?} at {p}");
-                assert!((aim.from(p).length() - 1.0).abs() < 1e-12);
+                let want = (centre - p).normalize_or_zero();
+                assert_eq!(aim.direction_from(p), want, "{aim:?} at {p}");
+                assert!((aim.direction_from(p).length() - 1.0).abs() < 1e-12);
             }
         }
         let direction = DVec3::new(1.0, -2.0, 0.5);
         let aim = LightAim::of(&light(LightShape::Directional { direction }));
         for p in points {
-            assert_eq!(aim.from(p), -direction.normalize());
+            assert_eq!(aim.direction_from(p), -direction.normalize());
         }
         let aim = LightAim::of(&light(LightShape::Explicit {
             positions: Vec::new(),
         }));
         for p in points {
-            assert_eq!(aim.from(p), DVec3::ZERO);
+            assert_eq!(aim.direction_from(p), DVec3::ZERO);
         }
     }
 
